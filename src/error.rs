@@ -1,0 +1,60 @@
+//! The library's error type.
+//!
+//! Owns: every failure a user can cause (bad input, unwritable output, a
+//! scene the solver cannot handle). Invariant: each variant renders as one
+//! line that names the offending file, mesh, primitive or setting, so that the
+//! binary can print it after `error:` and exit with code 1.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout the library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Errors the library reports instead of panicking.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The scene file could not be read or parsed, or violates the contract.
+    #[error("{path}: {message}")]
+    Scene { path: PathBuf, message: String },
+    /// A scene without any emitting surface cannot be lit.
+    #[error("no emitting surfaces in the scene")]
+    NoEmitters,
+    /// The scene has nothing to solve (every triangle was dropped or absent).
+    #[error("no usable triangles in the scene")]
+    EmptyScene,
+    /// An output file or folder could not be written.
+    #[error("cannot write {path}: {message}")]
+    Output { path: PathBuf, message: String },
+    /// An input file other than a scene (an image, a solution) is unreadable.
+    #[error("cannot read {path}: {message}")]
+    Input { path: PathBuf, message: String },
+    /// A setting is out of range or inconsistent.
+    #[error("invalid setting: {0}")]
+    Setting(String),
+}
+
+impl Error {
+    /// A scene error for `path` with the given message.
+    pub fn scene(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Scene {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    /// An output error for `path` from any displayable cause.
+    pub fn output(path: impl Into<PathBuf>, cause: impl std::fmt::Display) -> Self {
+        Error::Output {
+            path: path.into(),
+            message: cause.to_string(),
+        }
+    }
+
+    /// An input error for `path` from any displayable cause.
+    pub fn input(path: impl Into<PathBuf>, cause: impl std::fmt::Display) -> Self {
+        Error::Input {
+            path: path.into(),
+            message: cause.to_string(),
+        }
+    }
+}

@@ -1,0 +1,29 @@
+//! A linear RGB image in memory: what `render` and `reference` produce and
+//! `compare` reads.
+//!
+//! Invariant: `pixels.len() == width * height`, row 0 at the top, each pixel
+//! the mean outgoing radiance L over its footprint (W / (m² sr)).
+
+/// A float RGB image, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Frame {
+    /// A black image.
+    pub fn new(width: u32, height: u32) -> Frame {
+        Frame {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width as usize * height as usize],
+        }
+    }
+
+    /// The pixel at column `x`, row `y`.
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+}

@@ -1,0 +1,73 @@
+//! The output mesh: the triangles and per-vertex radiosity that every output
+//! (`solution.exr`, `baked.gltf`, renders) is made from.
+//!
+//! Invariants (checked by [`OutputMesh::validate`]):
+//! - all per-vertex arrays have the same length;
+//! - every triangle indexes existing vertices, is counter-clockwise seen from
+//!   the front of its patch, and its three vertices belong to one patch;
+//! - positions and normals are finite, normals unit length, radiosity finite
+//!   and non-negative.
+
+use glam::Vec3;
+
+/// Vertices and triangles with their radiosity, in world space (f32, as
+/// written to files).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct OutputMesh {
+    pub positions: Vec<Vec3>,
+    /// Unit normal of the patch the vertex belongs to.
+    pub normals: Vec<Vec3>,
+    /// Index of the input patch the vertex belongs to.
+    pub patch: Vec<u32>,
+    /// Radiosity B (exitance, W/m² per channel).
+    pub radiosity: Vec<Vec3>,
+    /// Vertex indices, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl OutputMesh {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Checks the invariants of the module doc; the first violation is
+    /// returned as a message.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if self.normals.len() != n || self.patch.len() != n || self.radiosity.len() != n {
+            return Err("per-vertex arrays differ in length".into());
+        }
+        for k in 0..n {
+            if !self.positions[k].is_finite() {
+                return Err(format!("vertex {k}: non-finite position"));
+            }
+            if (self.normals[k].length() - 1.0).abs() > 1e-4 {
+                return Err(format!("vertex {k}: normal is not unit length"));
+            }
+            let b = self.radiosity[k];
+            if !b.is_finite() || b.min_element() < 0.0 {
+                return Err(format!(
+                    "vertex {k}: radiosity {b} is negative or non-finite"
+                ));
+            }
+        }
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if tri.iter().any(|&i| i as usize >= n) {
+                return Err(format!("triangle {t}: vertex index out of range"));
+            }
+            let [a, b, c] = tri.map(|i| i as usize);
+            if self.patch[a] != self.patch[b] || self.patch[a] != self.patch[c] {
+                return Err(format!("triangle {t}: vertices from different patches"));
+            }
+            let [pa, pb, pc] = [a, b, c].map(|i| self.positions[i].as_dvec3());
+            let cross = (pb - pa).cross(pc - pa);
+            if cross.dot(self.normals[a].as_dvec3()) <= 0.0 {
+                return Err(format!(
+                    "triangle {t}: degenerate or wound against its normal"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
