@@ -5,8 +5,17 @@
 //! returns results and diagnostics, and only [`output`] writes files.
 
 pub mod error;
+pub mod formfactor;
 pub mod frame;
+pub mod matrix;
 pub mod mesh;
+pub mod progress;
+pub mod render;
+pub mod sampling;
 pub mod scene;
+pub mod solve;
+pub mod uniform;
+pub mod view;
+pub mod visibility;
 
 pub use error::{Error, Result};

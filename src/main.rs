@@ -1,1 +1,335 @@
-fn main() {}
+//! The `nusselt` command line.
+//!
+//! Owns: argument parsing (clap), the thread pool, and turning every failure
+//! into one `error:` line on stderr with exit code 1 (usage errors exit 2,
+//! through clap). Invariant: nothing a user can cause ends in a panic
+//! message or a backtrace; an internal bug is still reported as one line.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use glam::DVec3;
+
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::pipeline::{self, SolveSettings};
+use nusselt::progress::Progress;
+use nusselt::render::RenderSettings;
+use nusselt::report::Report;
+use nusselt::solve::Convergence;
+use nusselt::view::{View, ViewOverrides};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "nusselt",
+    version,
+    about = "Radiosity for glTF scenes of diffuse surfaces"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Solve a scene and write solution.exr, baked.gltf, render.exr/png and report.json.
+    Solve(SolveArgs),
+    /// Render a new view of an earlier solution without solving again.
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug)]
+struct Common {
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seed of every random choice; the same seed gives the same output.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// No progress bars and no summary line.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(Args, Debug)]
+struct ViewArgs {
+    /// Image width in pixels.
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long)]
+    height: Option<u32>,
+    /// Camera position X,Y,Z (metres).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<DVec3>,
+    /// Point the camera looks at, X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    target: Option<DVec3>,
+    /// Up direction X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    fov: Option<f64>,
+    /// Samples per pixel (stratified; rounded up to a square).
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+}
+
+impl ViewArgs {
+    fn overrides(&self) -> ViewOverrides {
+        ViewOverrides {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov_deg: self.fov,
+            width: self.width,
+            height: self.height,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+struct SolveArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// Output folder (default: out/<scene stem>).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Solver. Only the uniform-mesh Jacobi gatherer exists so far.
+    #[arg(long, value_enum, default_value_t = Method::Jacobi)]
+    method: Method,
+    /// Largest element edge in metres (default: 1/25 of the scene diagonal).
+    #[arg(long)]
+    element_size: Option<f64>,
+    /// Visibility rays per element pair.
+    #[arg(long, default_value_t = 4)]
+    visibility_rays: usize,
+    /// Stop when a sweep changes no radiosity by more than this fraction of the largest.
+    #[arg(long, default_value_t = 1e-6)]
+    tolerance: f64,
+    /// Iteration budget of the solver.
+    #[arg(long, default_value_t = 10_000)]
+    max_iterations: usize,
+    /// Largest dense form-factor matrix allowed, in GiB.
+    #[arg(long, default_value_t = 2.0)]
+    memory_budget: f64,
+    /// Reflectances at or above this are clamped to it.
+    #[arg(long, default_value_t = 0.999)]
+    max_reflectance: f64,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum Method {
+    /// Uniform mesh, point-to-polygon form factors, Jacobi gathering.
+    Jacobi,
+}
+
+#[derive(Args, Debug)]
+struct RenderArgs {
+    /// A solution.exr written by `nusselt solve`.
+    solution: PathBuf,
+    /// The image to write (.exr).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write a tone-mapped PNG here.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number"))?;
+    }
+    Ok(DVec3::from_array(v))
+}
+
+fn init_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    Ok(())
+}
+
+fn run_solve(args: SolveArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let start = Instant::now();
+    let progress = Progress::new(!args.common.quiet);
+    if !(args.max_reflectance > 0.0 && args.max_reflectance < 1.0) {
+        bail!("--max-reflectance must be in (0, 1)");
+    }
+    if !(args.tolerance > 0.0) {
+        bail!("--tolerance must be positive");
+    }
+    if !(args.memory_budget > 0.0 && args.memory_budget.is_finite()) {
+        bail!("--memory-budget must be a positive number of GiB");
+    }
+    let options = LoadOptions {
+        max_reflectance: args.max_reflectance,
+    };
+    let scene = load_scene(&args.scene, &options)
+        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let load_time = start.elapsed().as_secs_f64();
+    let Method::Jacobi = args.method;
+    let settings = SolveSettings {
+        element_size: args.element_size,
+        visibility_rays: args.visibility_rays,
+        seed: args.common.seed,
+        convergence: Convergence {
+            tolerance: args.tolerance,
+            max_iterations: args.max_iterations,
+        },
+        memory_budget: (args.memory_budget * (1u64 << 30) as f64) as u64,
+        render: RenderSettings {
+            samples_per_pixel: args.view.spp,
+            seed: args.common.seed,
+        },
+        view: args.view.overrides(),
+    };
+    let mut run = pipeline::solve(&scene, &settings, &progress)
+        .with_context(|| format!("solving {}", args.scene.display()))?;
+    run.report.scene = args.scene.display().to_string();
+    run.report.times.load = load_time;
+    run.report.times.total += load_time;
+    let dir = args.output.unwrap_or_else(|| {
+        let stem = args
+            .scene
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into());
+        Path::new("out").join(stem)
+    });
+    pipeline::write_outputs(&dir, &mut run)?;
+    for w in &run.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !args.common.quiet {
+        let c = &run.report.counts;
+        println!(
+            "{}: {} patches, {} elements, {} iterations{}, {:.2} s → {}",
+            args.scene.display(),
+            c.patches,
+            c.elements,
+            run.report.convergence.iterations,
+            if run.report.convergence.converged {
+                ""
+            } else {
+                " (not converged)"
+            },
+            run.report.times.total,
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    let mesh = nusselt::output::exr::read_solution(&args.solution)?;
+    mesh.validate()
+        .map_err(|e| anyhow::anyhow!("{}: invalid solution: {e}", args.solution.display()))?;
+    // The solve's report, when it sits beside the solution, gives the view.
+    let report_path = args.solution.with_file_name("report.json");
+    let report: Option<Report> = std::fs::read(&report_path)
+        .ok()
+        .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.as_dvec3()), hi.max(p.as_dvec3()))
+        });
+    let base = report
+        .as_ref()
+        .and_then(|r| r.view.clone())
+        .map(|v| nusselt::scene::Camera {
+            name: "report".into(),
+            eye: v.eye,
+            forward: v.forward,
+            up: v.up,
+            yfov: v.yfov,
+            aspect_ratio: Some(v.width as f64 / v.height as f64),
+        });
+    let mut overrides = args.view.overrides();
+    if let (Some(v), None, None) = (
+        report.as_ref().and_then(|r| r.view.as_ref()),
+        overrides.width,
+        overrides.height,
+    ) {
+        overrides.width = Some(v.width);
+        overrides.height = Some(v.height);
+    }
+    let view = View::resolve(base.as_ref(), (lo, hi), &overrides)?;
+    let settings = RenderSettings {
+        samples_per_pixel: args.view.spp,
+        seed: args.common.seed,
+    };
+    let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
+    nusselt::output::write_atomic(&args.output, &nusselt::output::exr::encode_image(&frame)?)?;
+    if let Some(png) = &args.png {
+        let exposure = report
+            .map(|r| r.exposure)
+            .unwrap_or_else(|| pipeline::display_exposure(&mesh));
+        nusselt::output::write_atomic(png, &nusselt::output::png::encode_png(&frame, exposure)?)?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!(
+            "error: internal error (a bug in nusselt): {}{at}",
+            msg.replace('\n', " ")
+        );
+    }));
+    let cli = Cli::parse();
+    let result = std::panic::catch_unwind(|| match cli.command {
+        Command::Solve(args) => run_solve(args),
+        Command::Render(args) => run_render(args),
+    });
+    match result {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(err)) => {
+            eprintln!("error: {}", format!("{err:#}").replace('\n', " "));
+            ExitCode::from(1)
+        }
+        Err(_) => ExitCode::from(1),
+    }
+}

@@ -1,1 +1,5 @@
 //! Integration tests, one module per topic.
+
+mod cli;
+mod end_to_end;
+mod util;

@@ -1,0 +1,232 @@
+//! The `solve` job end to end: scene → mesh → form factors → solution →
+//! output mesh → image, with a report; and writing its outputs.
+//!
+//! Owns: the order of the phases and their timing. Each phase lives in its
+//! own module; this one only wires them together.
+//!
+//! Invariant: [`solve`] does no IO; [`write_outputs`] stages every file and
+//! renames them only when all were written, so a failed run leaves earlier
+//! outputs intact.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec3;
+use serde_json::json;
+
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::matrix::{DEFAULT_MEMORY_BUDGET, FormFactorMatrix, MatrixSettings};
+use crate::mesh::OutputMesh;
+use crate::output::{self, OutputSet};
+use crate::progress::Progress;
+use crate::render::{RenderSettings, render};
+use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report};
+use crate::scene::Scene;
+use crate::solve::{Convergence, jacobi};
+use crate::uniform::UniformMesh;
+use crate::view::{View, ViewOverrides};
+use crate::visibility::TriangleBvh;
+
+/// Default element size as a fraction of the scene diagonal.
+pub const DEFAULT_ELEMENT_FRACTION: f64 = 1.0 / 25.0;
+
+/// Everything `nusselt solve` can be told.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveSettings {
+    /// Largest element edge in metres; `None` = [`DEFAULT_ELEMENT_FRACTION`]
+    /// of the scene diagonal.
+    pub element_size: Option<f64>,
+    pub visibility_rays: usize,
+    pub seed: u64,
+    pub convergence: Convergence,
+    pub memory_budget: u64,
+    pub render: RenderSettings,
+    pub view: ViewOverrides,
+}
+
+impl Default for SolveSettings {
+    fn default() -> Self {
+        SolveSettings {
+            element_size: None,
+            visibility_rays: 4,
+            seed: 0,
+            convergence: Convergence::default(),
+            memory_budget: DEFAULT_MEMORY_BUDGET,
+            render: RenderSettings::default(),
+            view: ViewOverrides::default(),
+        }
+    }
+}
+
+/// The results of a solve, ready to be written.
+#[derive(Clone, Debug)]
+pub struct SolveRun {
+    pub mesh: OutputMesh,
+    pub frame: Frame,
+    pub report: Report,
+}
+
+fn secs(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// Solves `scene` with the uniform-mesh Jacobi method and renders the
+/// default view. `report.times.load` and `report.scene` are left for the
+/// caller.
+pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Result<SolveRun> {
+    let start = Instant::now();
+    let mut report = Report {
+        nusselt_version: env!("CARGO_PKG_VERSION").to_string(),
+        method: "jacobi".into(),
+        threads: rayon::current_num_threads(),
+        warnings: scene.warnings.clone(),
+        ..Report::default()
+    };
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+    let element_size = settings
+        .element_size
+        .unwrap_or(scene.diagonal() * DEFAULT_ELEMENT_FRACTION);
+    if !(element_size > 0.0 && element_size.is_finite()) {
+        return Err(crate::Error::Setting(format!(
+            "element size {element_size} must be positive"
+        )));
+    }
+
+    let t = Instant::now();
+    let occluders: Vec<[glam::Vec3; 3]> = scene
+        .triangles
+        .iter()
+        .map(|t| t.positions.map(|p| p.as_vec3()))
+        .collect();
+    let bvh = TriangleBvh::new(&occluders, scene.diagonal());
+    report.times.bvh = secs(t);
+
+    let t = Instant::now();
+    let mesh = UniformMesh::new(scene, element_size);
+    report.times.mesh = secs(t);
+
+    let t = Instant::now();
+    let matrix_settings = MatrixSettings {
+        visibility_rays: settings.visibility_rays,
+        seed: settings.seed,
+        memory_budget: settings.memory_budget,
+    };
+    let (matrix, stats) = FormFactorMatrix::point_polygon(&mesh, &bvh, &matrix_settings, progress)?;
+    report.times.form_factors = secs(t);
+
+    let t = Instant::now();
+    let reflectance: Vec<DVec3> = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].reflectance)
+        .collect();
+    let emission: Vec<DVec3> = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].emission)
+        .collect();
+    let solution = jacobi(&matrix, &reflectance, &emission, &settings.convergence);
+    report.times.solve = secs(t);
+    drop(matrix);
+
+    let area = |i: usize| mesh.elements[i].area;
+    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
+        (0..mesh.elements.len()).map(f).sum::<DVec3>().to_array()
+    };
+    report.power = Power {
+        emitted: sum(&|i| emission[i] * area(i)),
+        absorbed: sum(&|i| (DVec3::ONE - reflectance[i]) * solution.irradiance[i] * area(i)),
+        radiated: sum(&|i| solution.radiosity[i] * area(i)),
+    };
+    report.convergence = ConvergenceReport {
+        converged: solution.converged,
+        iterations: solution.history.len(),
+        tolerance: settings.convergence.tolerance,
+        history: solution
+            .history
+            .iter()
+            .map(|h| HistoryEntry {
+                iteration: h.iteration,
+                residual: h.residual,
+                seconds: h.seconds,
+            })
+            .collect(),
+    };
+    if !solution.converged {
+        report.warnings.push(format!(
+            "Jacobi did not reach the tolerance {} within {} iterations",
+            settings.convergence.tolerance, settings.convergence.max_iterations
+        ));
+    }
+
+    let t = Instant::now();
+    let out = mesh.output_mesh(scene, &solution.radiosity);
+    report.times.output_mesh = secs(t);
+
+    let t = Instant::now();
+    let frame = render(&out, &view, &settings.render, progress);
+    report.times.render = secs(t);
+
+    report.counts = Counts {
+        input_triangles: scene.stats.input_triangles,
+        degenerate_dropped: scene.stats.degenerate_dropped,
+        merged_quads: scene.stats.merged_quads,
+        patches: scene.patches.len(),
+        elements: mesh.elements.len(),
+        leaves: mesh.elements.len(),
+        links: stats.nonzero_pairs,
+        visibility_rays: stats.visibility_rays,
+        output_vertices: out.vertex_count(),
+        output_triangles: out.triangles.len(),
+    };
+    report.max_row_sum = stats.max_row_sum;
+    report.mean_row_sum = stats.mean_row_sum;
+    report.settings = json!({
+        "element_size": element_size,
+        "visibility_rays": settings.visibility_rays,
+        "seed": settings.seed,
+        "tolerance": settings.convergence.tolerance,
+        "max_iterations": settings.convergence.max_iterations,
+        "memory_budget": settings.memory_budget,
+        "samples_per_pixel": settings.render.samples_per_pixel,
+        "width": view.width,
+        "height": view.height,
+    });
+    report.exposure = display_exposure(&out);
+    report.view = Some(view);
+    report.times.total = secs(start);
+    Ok(SolveRun {
+        mesh: out,
+        frame,
+        report,
+    })
+}
+
+/// The display exposure of a solution: chosen from the radiance of its
+/// vertices, so that the bake and every render of it share one exposure.
+pub fn display_exposure(mesh: &OutputMesh) -> f32 {
+    output::png::auto_exposure(
+        mesh.radiosity
+            .iter()
+            .map(|b| output::png::luminance((*b / std::f32::consts::PI).to_array())),
+    )
+}
+
+/// Writes the five outputs of the contract into `dir` (staged, then renamed
+/// together). Fills `report.times.write` before writing the report.
+pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
+    let t = Instant::now();
+    let mut set = OutputSet::create(dir)?;
+    let exposure = run.report.exposure;
+    set.stage("solution.exr", &output::exr::encode_solution(&run.mesh)?)?;
+    let (gltf, bin) = output::baked::encode_baked_gltf(&run.mesh, exposure, "baked.bin")?;
+    set.stage("baked.bin", &bin)?;
+    set.stage("baked.gltf", &gltf)?;
+    set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
+    set.stage("render.png", &output::png::encode_png(&run.frame, exposure)?)?;
+    run.report.times.write = secs(t);
+    run.report.times.total += run.report.times.write;
+    set.stage("report.json", &output::write_json(&run.report)?)?;
+    set.commit()
+}

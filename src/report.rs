@@ -1,0 +1,92 @@
+//! `report.json`: what a run did, for users and for the study tools.
+//!
+//! Owns: the report's schema. Every field is plain data (serde); the
+//! pipeline fills it, `output` writes it, `nusselt render` reads the view
+//! back from it.
+//!
+//! Invariant: times are wall-clock seconds per phase; powers are watts per
+//! RGB channel; counts are exact.
+
+use serde::{Deserialize, Serialize};
+
+use crate::view::View;
+
+/// Seconds spent in each phase of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PhaseTimes {
+    pub load: f64,
+    pub bvh: f64,
+    pub mesh: f64,
+    pub form_factors: f64,
+    pub solve: f64,
+    pub output_mesh: f64,
+    pub render: f64,
+    pub write: f64,
+    pub total: f64,
+}
+
+/// Sizes of everything the run built.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Counts {
+    pub input_triangles: usize,
+    pub degenerate_dropped: usize,
+    pub merged_quads: usize,
+    pub patches: usize,
+    pub elements: usize,
+    pub leaves: usize,
+    /// Non-zero element interactions (matrix entries or hierarchy links).
+    pub links: u64,
+    pub visibility_rays: u64,
+    pub output_vertices: usize,
+    pub output_triangles: usize,
+}
+
+/// One step of an iterative solve.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct HistoryEntry {
+    pub iteration: usize,
+    pub residual: f64,
+    pub seconds: f64,
+}
+
+/// How the solve ended.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ConvergenceReport {
+    pub converged: bool,
+    pub iterations: usize,
+    pub tolerance: f64,
+    pub history: Vec<HistoryEntry>,
+}
+
+/// Energy balance, W per channel.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Power {
+    /// Σ E_i A_i.
+    pub emitted: [f64; 3],
+    /// Σ (1 − ρ_i) H_i A_i: what the surfaces absorb.
+    pub absorbed: [f64; 3],
+    /// Σ B_i A_i: all power leaving surfaces.
+    pub radiated: [f64; 3],
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub nusselt_version: String,
+    pub scene: String,
+    pub method: String,
+    /// Every setting of the run, by name.
+    pub settings: serde_json::Value,
+    pub counts: Counts,
+    pub times: PhaseTimes,
+    pub convergence: ConvergenceReport,
+    pub power: Power,
+    /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
+    pub max_row_sum: f64,
+    pub mean_row_sum: f64,
+    pub view: Option<View>,
+    /// Display exposure used for `render.png` and `COLOR_0` of the bake.
+    pub exposure: f32,
+    pub threads: usize,
+    pub warnings: Vec<String>,
+}

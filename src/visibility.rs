@@ -1,0 +1,214 @@
+//! Ray queries against a triangle set: occlusion of point-to-point segments
+//! and closest hits, on an `obvhs` compressed wide BVH.
+//!
+//! Owns: the only use of `obvhs`. Geometry is held in f32 (what obvhs
+//! traverses); callers pass f64 points.
+//!
+//! Invariants:
+//! - A segment query ignores hits within `endpoint_gap` (a fixed fraction of
+//!   the scene diagonal, [`ENDPOINT_GAP`]) of either endpoint, so that points
+//!   lying on surfaces never occlude themselves, whatever the scene's scale.
+//! - Batched queries return results in input order and are independent of the
+//!   thread count.
+
+use std::time::Duration;
+
+use glam::{DVec3, Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    ray::{Ray, RayHit},
+    triangle::Triangle,
+};
+use rayon::prelude::*;
+
+/// Hits closer than this fraction of the scene diagonal to a segment's
+/// endpoints do not count as occlusion.
+pub const ENDPOINT_GAP: f64 = 1e-5;
+
+/// A closest-hit result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit (in units of the direction's length).
+    pub t: f64,
+    /// Index of the triangle in the order it was given.
+    pub triangle: u32,
+}
+
+/// A BVH over triangles, ready for occlusion and closest-hit queries.
+pub struct TriangleBvh {
+    bvh: CwBvh,
+    /// Triangles in BVH primitive order.
+    triangles: Vec<Triangle>,
+    /// Input index of each triangle in `triangles`.
+    input_index: Vec<u32>,
+    endpoint_gap: f64,
+    build_time: Duration,
+}
+
+impl TriangleBvh {
+    /// Builds the BVH. `diagonal` is the scene's length scale.
+    pub fn new(triangles: &[[Vec3; 3]], diagonal: f64) -> TriangleBvh {
+        let start = std::time::Instant::now();
+        let tris: Vec<Triangle> = triangles
+            .iter()
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
+            .collect();
+        let (bvh, ordered, input_index) = if tris.is_empty() {
+            (CwBvh::default(), Vec::new(), Vec::new())
+        } else {
+            let mut core = Duration::default();
+            let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut core);
+            let ordered = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| tris[i as usize])
+                .collect();
+            let index = bvh.primitive_indices.clone();
+            (bvh, ordered, index)
+        };
+        TriangleBvh {
+            bvh,
+            triangles: ordered,
+            input_index,
+            endpoint_gap: ENDPOINT_GAP * diagonal,
+            build_time: start.elapsed(),
+        }
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// True when there are no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Wall time the build took.
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// True when nothing blocks the open segment between `a` and `b`.
+    pub fn visible(&self, a: DVec3, b: DVec3) -> bool {
+        if self.triangles.is_empty() {
+            return true;
+        }
+        let d = b - a;
+        let len = d.length();
+        if !(len > 2.0 * self.endpoint_gap) {
+            return true;
+        }
+        let gap = self.endpoint_gap / len;
+        let ray = Ray::new(
+            Vec3A::from(a.as_vec3()),
+            Vec3A::from(d.as_vec3()),
+            gap as f32,
+            (1.0 - gap) as f32,
+        );
+        self.bvh
+            .ray_traverse_miss(ray, |ray, id| self.triangles[id].intersect(ray))
+    }
+
+    /// [`Self::visible`] for many segments, in parallel, results in order.
+    pub fn visible_batch(&self, segments: &[(DVec3, DVec3)]) -> Vec<bool> {
+        segments
+            .par_iter()
+            .with_min_len(64)
+            .map(|&(a, b)| self.visible(a, b))
+            .collect()
+    }
+
+    /// The closest triangle hit by the ray `origin + t·direction`,
+    /// `t` in (0, t_max].
+    pub fn closest_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<Hit> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let ray = Ray::new(
+            Vec3A::from(origin.as_vec3()),
+            Vec3A::from(direction.as_vec3()),
+            0.0,
+            t_max as f32,
+        );
+        let mut hit = RayHit::none();
+        if self
+            .bvh
+            .ray_traverse(ray, &mut hit, |ray, id| self.triangles[id].intersect(ray))
+        {
+            Some(Hit {
+                t: hit.t as f64,
+                triangle: self.input_index[hit.primitive_id as usize],
+            })
+        } else {
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(z: f32, half: f32) -> [[Vec3; 3]; 2] {
+        let p = |x: f32, y: f32| Vec3::new(x, y, z);
+        [
+            [p(-half, -half), p(half, -half), p(half, half)],
+            [p(-half, -half), p(half, half), p(-half, half)],
+        ]
+    }
+
+    #[test]
+    fn blocker_between_points_occludes() {
+        let tris = square(0.0, 1.0);
+        let bvh = TriangleBvh::new(&tris, 2.0);
+        assert!(!bvh.visible(DVec3::new(0.1, 0.2, -1.0), DVec3::new(0.0, 0.0, 1.0)));
+        assert!(bvh.visible(DVec3::new(3.0, 0.0, -1.0), DVec3::new(3.0, 0.0, 1.0)));
+        // Endpoints on the square itself never occlude themselves.
+        assert!(bvh.visible(DVec3::new(0.3, 0.3, 0.0), DVec3::new(0.3, 0.3, 2.0)));
+        assert!(bvh.visible(DVec3::new(0.3, 0.3, 2.0), DVec3::new(0.3, 0.3, 0.0)));
+    }
+
+    #[test]
+    fn closest_hit_reports_input_index_and_distance() {
+        let mut tris = square(1.0, 1.0).to_vec();
+        tris.extend(square(2.0, 1.0));
+        let bvh = TriangleBvh::new(&tris, 4.0);
+        let hit = bvh
+            .closest_hit(DVec3::new(0.5, -0.2, 0.0), DVec3::Z, 10.0)
+            .unwrap();
+        assert!((hit.t - 1.0).abs() < 1e-6);
+        assert!(hit.triangle < 2, "nearest square is triangles 0 and 1");
+        let hit = bvh
+            .closest_hit(DVec3::new(0.5, -0.2, 1.5), DVec3::Z, 10.0)
+            .unwrap();
+        assert!((hit.t - 0.5).abs() < 1e-6);
+        assert!(hit.triangle >= 2);
+        assert!(
+            bvh.closest_hit(DVec3::new(5.0, 0.0, 0.0), DVec3::Z, 10.0)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn batch_matches_single_queries() {
+        let tris = square(0.0, 1.0);
+        let bvh = TriangleBvh::new(&tris, 2.0);
+        let segs: Vec<_> = (0..500)
+            .map(|i| {
+                let x = i as f64 / 100.0 - 2.5;
+                (DVec3::new(x, 0.0, -1.0), DVec3::new(-x, 0.1, 1.0))
+            })
+            .collect();
+        let batch = bvh.visible_batch(&segs);
+        for (s, v) in segs.iter().zip(batch) {
+            assert_eq!(bvh.visible(s.0, s.1), v);
+        }
+    }
+}

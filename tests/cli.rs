@@ -1,0 +1,150 @@
+//! The command line on bad input: one `error:` line, exit code 1, no partial
+//! or clobbered output.
+
+use std::fs;
+
+use crate::util::{TestMesh, assert_user_error, gltf_json, inward_box, nusselt};
+
+fn write(dir: &std::path::Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    fs::write(&p, text).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+fn lit_box() -> Vec<TestMesh> {
+    inward_box(1.0, [1.0, 1.0, 1.0], [0.5, 0.5, 0.5])
+}
+
+#[test]
+fn missing_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = nusselt(&["solve", "no-such-scene.gltf", "-q"], dir.path());
+    assert_user_error(&out, "no-such-scene.gltf");
+}
+
+#[test]
+fn malformed_and_truncated_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "bad.gltf",
+        "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [",
+    );
+    assert_user_error(&nusselt(&["solve", &p, "-q"], dir.path()), "bad.gltf");
+    let full = gltf_json(&lit_box());
+    let p = write(dir.path(), "cut.gltf", &full[..full.len() / 2]);
+    assert_user_error(&nusselt(&["solve", &p, "-q"], dir.path()), "cut.gltf");
+}
+
+#[test]
+fn nan_coordinates_name_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut meshes = lit_box();
+    meshes[2].positions[1][0] = f32::NAN;
+    let p = write(dir.path(), "nan.gltf", &gltf_json(&meshes));
+    assert_user_error(&nusselt(&["solve", &p, "-q"], dir.path()), "back");
+}
+
+#[test]
+fn out_of_range_index_names_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut meshes = lit_box();
+    meshes[4].indices[2] = 99;
+    let p = write(dir.path(), "index.gltf", &gltf_json(&meshes));
+    assert_user_error(&nusselt(&["solve", &p, "-q"], dir.path()), "left");
+}
+
+#[test]
+fn no_emitters() {
+    let dir = tempfile::tempdir().unwrap();
+    let meshes = inward_box(1.0, [0.0; 3], [0.5; 3]);
+    let p = write(dir.path(), "dark.gltf", &gltf_json(&meshes));
+    assert_user_error(
+        &nusselt(&["solve", &p, "-q"], dir.path()),
+        "no emitting surfaces",
+    );
+}
+
+#[test]
+fn unwritable_output_folder_and_earlier_results_survive() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "box.gltf", &gltf_json(&lit_box()));
+    fs::write(dir.path().join("a-file"), "x").unwrap();
+    let out = nusselt(
+        &[
+            "solve",
+            &p,
+            "-q",
+            "-o",
+            "a-file/out",
+            "--element-size",
+            "0.5",
+        ],
+        dir.path(),
+    );
+    assert_user_error(&out, "a-file");
+
+    // A good run, then a failing one into the same folder: the first
+    // run's files stay as they were, and no temporary file is left.
+    let ok = nusselt(
+        &[
+            "solve",
+            &p,
+            "-q",
+            "-o",
+            "res",
+            "--element-size",
+            "0.5",
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ],
+        dir.path(),
+    );
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let res = dir.path().join("res");
+    let before: Vec<(String, Vec<u8>)> = list(&res);
+    assert_eq!(
+        before.len(),
+        6,
+        "{:?}",
+        before.iter().map(|b| &b.0).collect::<Vec<_>>()
+    );
+    let bad = write(dir.path(), "bad.gltf", "not json");
+    assert_user_error(
+        &nusselt(&["solve", &bad, "-q", "-o", "res"], dir.path()),
+        "bad.gltf",
+    );
+    let fov = nusselt(&["solve", &p, "-q", "-o", "res", "--fov", "0"], dir.path());
+    assert_user_error(&fov, "field of view");
+    assert_eq!(list(&res), before);
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = nusselt(&["solve"], dir.path());
+    assert_eq!(out.status.code(), Some(2));
+    let out = nusselt(&["solve", "x.gltf", "--eye", "1,2"], dir.path());
+    assert_eq!(out.status.code(), Some(2));
+}
+
+fn list(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}

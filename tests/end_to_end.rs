@@ -1,0 +1,213 @@
+//! `nusselt solve` end to end: every output is written, reads back, and
+//! agrees with the solution and with energy conservation.
+
+use std::fs;
+use std::path::Path;
+
+use glam::DVec3;
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::output;
+use nusselt::render::{RenderSettings, render};
+use nusselt::report::Report;
+
+use crate::util::{gltf_json, inward_box, nusselt};
+
+fn repo(path: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(path)
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn read_report(dir: &Path) -> Report {
+    serde_json::from_slice(&fs::read(dir.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn cornell_box_outputs_agree_with_the_solution() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = repo("scenes/cornell-box.gltf");
+    let out = nusselt(
+        &[
+            "solve",
+            &scene_path,
+            "-q",
+            "-o",
+            "out",
+            "--width",
+            "48",
+            "--height",
+            "48",
+            "--spp",
+            "4",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let res = dir.path().join("out");
+    let mut names: Vec<String> = fs::read_dir(&res)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "baked.bin",
+            "baked.gltf",
+            "render.exr",
+            "render.png",
+            "report.json",
+            "solution.exr"
+        ]
+    );
+
+    let report = read_report(&res);
+    let mesh = output::exr::read_solution(&res.join("solution.exr")).unwrap();
+    mesh.validate().unwrap();
+    assert_eq!(mesh.vertex_count(), report.counts.output_vertices);
+    assert_eq!(mesh.triangles.len(), report.counts.output_triangles);
+    assert!(report.convergence.converged);
+    assert!(report.counts.elements >= report.counts.patches);
+
+    // Energy: what the surfaces absorb never exceeds what is emitted, and in
+    // this nearly closed box (open front only) most of it is absorbed.
+    let scene = load_scene(Path::new(&scene_path), &LoadOptions::default()).unwrap();
+    let phi = scene.emitted_power();
+    for c in 0..3 {
+        assert!((report.power.emitted[c] - phi[c]).abs() < 1e-6 * phi[c]);
+        let absorbed = report.power.absorbed[c];
+        assert!(
+            absorbed <= phi[c] * 1.02,
+            "channel {c}: {absorbed} > {}",
+            phi[c]
+        );
+        assert!(
+            absorbed > 0.6 * phi[c],
+            "channel {c}: {absorbed} of {}",
+            phi[c]
+        );
+    }
+
+    // The bake carries the same vertices and radiosity.
+    let (doc, buffers, _) = gltf::import(res.join("baked.gltf")).unwrap();
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    assert_eq!(positions.len(), mesh.vertex_count());
+    for (p, q) in positions.iter().zip(&mesh.positions) {
+        assert_eq!(*p, q.to_array());
+    }
+    let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    assert_eq!(indices.len(), 3 * mesh.triangles.len());
+
+    // The render is exactly what rendering the solution gives.
+    let frame = output::exr::read_image(&res.join("render.exr")).unwrap();
+    let view = report.view.clone().unwrap();
+    assert_eq!((frame.width, frame.height), (48, 48));
+    let again = render(
+        &mesh,
+        &view,
+        &RenderSettings {
+            samples_per_pixel: 4,
+            seed: 0,
+        },
+        &nusselt::progress::Progress::hidden(),
+    );
+    assert_eq!(frame, again);
+
+    // Colour bleeding: the white floor is redder near the red (left, +x)
+    // wall than near the green one, and greener near the green one.
+    let floor: Vec<usize> = (0..mesh.vertex_count())
+        .filter(|&k| mesh.normals[k].y > 0.99 && mesh.positions[k].y < 0.01)
+        .collect();
+    assert!(!floor.is_empty());
+    let near = |x_lo: f32, x_hi: f32| {
+        let pick: Vec<&usize> = floor
+            .iter()
+            .filter(|&&k| (x_lo..x_hi).contains(&mesh.positions[k].x))
+            .collect();
+        let b: DVec3 = pick
+            .iter()
+            .map(|&&k| mesh.radiosity[k].as_dvec3())
+            .sum::<DVec3>()
+            / pick.len() as f64;
+        b.x / b.y
+    };
+    let red_side = near(0.45, 0.56);
+    let green_side = near(0.0, 0.1);
+    assert!(
+        red_side > green_side * 1.05,
+        "red/green ratio {red_side} vs {green_side}"
+    );
+}
+
+#[test]
+fn closed_box_conserves_energy_and_is_thread_independent() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("box.gltf");
+    fs::write(
+        &p,
+        gltf_json(&inward_box(2.0, [1.0, 0.8, 0.6], [0.6, 0.5, 0.4])),
+    )
+    .unwrap();
+    let p = p.to_string_lossy().into_owned();
+    let args = |o: &'static str, t: &'static str| {
+        vec![
+            "solve",
+            &p,
+            "-q",
+            "-o",
+            o,
+            "--threads",
+            t,
+            "--element-size",
+            "0.25",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ]
+        .into_iter()
+        .map(str::to_owned)
+        .collect::<Vec<String>>()
+    };
+    for (o, t) in [("one", "1"), ("two", "2")] {
+        let a = args(o, t);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let out = nusselt(&a, dir.path());
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let one = dir.path().join("one");
+    let two = dir.path().join("two");
+    for f in ["solution.exr", "render.exr", "baked.bin"] {
+        assert_eq!(
+            fs::read(one.join(f)).unwrap(),
+            fs::read(two.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // In a closed box everything emitted is eventually absorbed; the
+    // centroid-collocation form factors close to within a few per cent.
+    let r = read_report(&one);
+    for c in 0..3 {
+        let ratio = r.power.absorbed[c] / r.power.emitted[c];
+        assert!(
+            (ratio - 1.0).abs() < 0.03,
+            "channel {c}: absorbed/emitted = {ratio}"
+        );
+    }
+    assert!(
+        (r.mean_row_sum - 1.0).abs() < 0.03,
+        "mean row sum {}",
+        r.mean_row_sum
+    );
+}
