@@ -1,5 +1,6 @@
 //! Integration tests, one module per topic.
 
 mod cli;
+mod closed_forms;
 mod end_to_end;
 mod util;
