@@ -165,7 +165,7 @@ pub const MAX_EVALUATIONS: usize = 2_000_000;
 /// assert!((f.value - 0.199825).abs() < 1e-6);
 /// ```
 pub fn form_factor_polygon_polygon(receiver: &[DVec3], source: &[DVec3], tolerance: f64) -> Estimate {
-    form_factor_polygon_polygon_with(receiver, source, tolerance, |_| 1.0)
+    form_factor_polygon_polygon_with(receiver, source, tolerance, MAX_EVALUATIONS, |_| 1.0)
 }
 
 /// A triangle of the adaptive quadrature: its four midpoint children, their
@@ -195,11 +195,13 @@ impl Ord for Piece {
 
 /// [`form_factor_polygon_polygon`] with the inner integral weighted by
 /// `visible(x)`, the fraction of the source visible from receiver point x
-/// (for example from a few shadow rays).
+/// (for example from a fixed set of shadow rays), spending at most
+/// `max_evaluations` integrand evaluations.
 pub fn form_factor_polygon_polygon_with(
     receiver: &[DVec3],
     source: &[DVec3],
     tolerance: f64,
+    max_evaluations: usize,
     visible: impl Fn(DVec3) -> f64,
 ) -> Estimate {
     let (area, normal) = crate::scene::polygon_area_normal(receiver);
@@ -228,7 +230,7 @@ pub fn form_factor_polygon_polygon_with(
     }
     let budget = tolerance.max(0.0) * area;
     let mut error: f64 = heap.iter().map(|p| p.diff).sum();
-    while error > budget && evaluations < MAX_EVALUATIONS {
+    while error > budget && evaluations < max_evaluations {
         let Some(worst) = heap.pop() else { break };
         error -= worst.diff;
         for (ch, part) in worst.children.iter().zip(worst.parts) {

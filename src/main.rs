@@ -14,11 +14,12 @@ use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
 use nusselt::load::{LoadOptions, load_scene};
+use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::pipeline::{self, SolveSettings};
 use nusselt::progress::Progress;
 use nusselt::render::RenderSettings;
 use nusselt::report::Report;
-use nusselt::solve::Convergence;
+use nusselt::solve::{ClassicMethod, Convergence};
 use nusselt::view::{View, ViewOverrides};
 
 #[derive(Parser, Debug)]
@@ -38,6 +39,8 @@ enum Command {
     Solve(SolveArgs),
     /// Render a new view of an earlier solution without solving again.
     Render(RenderArgs),
+    /// Form factors between the scene's surfaces (glTF nodes), as CSV on stdout.
+    Formfactors(FormFactorArgs),
 }
 
 #[derive(Args, Debug)]
@@ -98,24 +101,25 @@ struct SolveArgs {
     /// Output folder (default: out/<scene stem>).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Solver. Only the uniform-mesh Jacobi gatherer exists so far.
+    /// Solver (all on a uniform mesh with a dense matrix).
     #[arg(long, value_enum, default_value_t = Method::Jacobi)]
     method: Method,
     /// Largest element edge in metres (default: 1/25 of the scene diagonal).
     #[arg(long)]
     element_size: Option<f64>,
-    /// Visibility rays per element pair.
-    #[arg(long, default_value_t = 4)]
-    visibility_rays: usize,
-    /// Stop when a sweep changes no radiosity by more than this fraction of the largest.
+    #[command(flatten)]
+    kernel: KernelArgs,
+    /// Gathering: stop when a sweep changes no radiosity by more than this
+    /// fraction of the largest. Shooting: stop when the unshot power is below
+    /// this fraction of the emitted power.
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
-    /// Iteration budget of the solver.
-    #[arg(long, default_value_t = 10_000)]
+    /// Iteration budget: sweeps (gathering) or shots (shooting).
+    #[arg(long, default_value_t = 1_000_000)]
     max_iterations: usize,
-    /// Largest dense form-factor matrix allowed, in GiB.
-    #[arg(long, default_value_t = 2.0)]
-    memory_budget: f64,
+    /// Render snapshots after these iterations, e.g. 1,2,24,100.
+    #[arg(long, value_delimiter = ',')]
+    snapshots: Vec<usize>,
     /// Reflectances at or above this are clamped to it.
     #[arg(long, default_value_t = 0.999)]
     max_reflectance: f64,
@@ -127,8 +131,120 @@ struct SolveArgs {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 enum Method {
-    /// Uniform mesh, point-to-polygon form factors, Jacobi gathering.
+    /// LU factorisation of the full system (Gaussian elimination).
+    Direct,
+    /// Jacobi gathering.
     Jacobi,
+    /// Gauss-Seidel gathering.
+    GaussSeidel,
+    /// Southwell shooting / progressive refinement.
+    Shooting,
+}
+
+impl Method {
+    fn classic(self) -> ClassicMethod {
+        match self {
+            Method::Direct => ClassicMethod::Direct,
+            Method::Jacobi => ClassicMethod::Jacobi,
+            Method::GaussSeidel => ClassicMethod::GaussSeidel,
+            Method::Shooting => ClassicMethod::Shooting,
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum KernelName {
+    /// Analytic from the receiver's centroid, visibility by rays.
+    PointPolygon,
+    /// Adaptive quadrature of the analytic inner integral, visibility by rays.
+    PolygonPolygon,
+    /// Area sampling (stratified point pairs, one ray each).
+    Sampling,
+    /// Hemicube at the receiver's centroid, z-buffer visibility.
+    Hemicube,
+}
+
+/// How form factors are computed.
+#[derive(Args, Debug)]
+struct KernelArgs {
+    /// Form-factor kernel.
+    #[arg(long, value_enum, default_value_t = KernelName::PointPolygon)]
+    kernel: KernelName,
+    /// Visibility rays per element pair (point-polygon) or per quadrature point (polygon-polygon).
+    #[arg(long, default_value_t = 4)]
+    visibility_rays: usize,
+    /// Point pairs per element pair (sampling).
+    #[arg(long, default_value_t = 16)]
+    samples: usize,
+    /// Absolute tolerance of each form factor (polygon-polygon).
+    #[arg(long, default_value_t = 1e-4)]
+    quadrature_tolerance: f64,
+    /// Hemicube top-face resolution (cells per side; even).
+    #[arg(long, default_value_t = 128)]
+    hemicube_resolution: u32,
+    /// Do not turn each hemicube by a random angle about its normal.
+    #[arg(long)]
+    no_hemicube_rotation: bool,
+    /// Largest dense matrix (and direct-method factorisation) allowed, in GiB.
+    #[arg(long, default_value_t = 2.0)]
+    memory_budget: f64,
+}
+
+impl KernelArgs {
+    fn settings(&self, seed: u64) -> Result<MatrixSettings> {
+        if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
+            bail!("--memory-budget must be a positive number of GiB");
+        }
+        if self.hemicube_resolution < 2 || self.hemicube_resolution % 2 != 0 || self.hemicube_resolution > 8192 {
+            bail!("--hemicube-resolution must be an even number from 2 to 8192");
+        }
+        if !(self.quadrature_tolerance > 0.0) {
+            bail!("--quadrature-tolerance must be positive");
+        }
+        Ok(MatrixSettings {
+            kernel: match self.kernel {
+                KernelName::PointPolygon => Kernel::PointPolygon,
+                KernelName::PolygonPolygon => Kernel::PolygonPolygon,
+                KernelName::Sampling => Kernel::Sampling,
+                KernelName::Hemicube => Kernel::Hemicube,
+            },
+            visibility_rays: self.visibility_rays.max(1),
+            samples: self.samples.max(1),
+            quadrature_tolerance: self.quadrature_tolerance,
+            hemicube_resolution: self.hemicube_resolution,
+            hemicube_rotation: !self.no_hemicube_rotation,
+            seed,
+            memory_budget: (self.memory_budget * (1u64 << 30) as f64) as u64,
+        })
+    }
+}
+
+#[derive(Args, Debug)]
+struct FormFactorArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// analytic = polygon-polygon quadrature, sampling = area sampling, hemicube.
+    #[arg(long, value_enum, default_value_t = FormFactorMethod::Analytic)]
+    method: FormFactorMethod,
+    /// Cut surfaces into elements no larger than this (metres) before
+    /// integrating; default: whole patches (analytic, sampling) or 1/25 of
+    /// the scene diagonal (hemicube, which samples at element centroids).
+    #[arg(long)]
+    element_size: Option<f64>,
+    #[command(flatten)]
+    kernel: KernelArgs,
+    /// Reflectances at or above this are clamped to it.
+    #[arg(long, default_value_t = 0.999)]
+    max_reflectance: f64,
+    #[command(flatten)]
+    common: Common,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum FormFactorMethod {
+    Analytic,
+    Sampling,
+    Hemicube,
 }
 
 #[derive(Args, Debug)]
@@ -187,30 +303,27 @@ fn run_solve(args: SolveArgs) -> Result<()> {
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }
-    if !(args.memory_budget > 0.0 && args.memory_budget.is_finite()) {
-        bail!("--memory-budget must be a positive number of GiB");
-    }
+    let matrix = args.kernel.settings(args.common.seed)?;
     let options = LoadOptions {
         max_reflectance: args.max_reflectance,
     };
     let scene = load_scene(&args.scene, &options)
         .with_context(|| format!("loading {}", args.scene.display()))?;
     let load_time = start.elapsed().as_secs_f64();
-    let Method::Jacobi = args.method;
     let settings = SolveSettings {
+        method: args.method.classic(),
         element_size: args.element_size,
-        visibility_rays: args.visibility_rays,
-        seed: args.common.seed,
+        matrix,
         convergence: Convergence {
             tolerance: args.tolerance,
             max_iterations: args.max_iterations,
         },
-        memory_budget: (args.memory_budget * (1u64 << 30) as f64) as u64,
         render: RenderSettings {
             samples_per_pixel: args.view.spp,
             seed: args.common.seed,
         },
         view: args.view.overrides(),
+        snapshots: args.snapshots.clone(),
     };
     let mut run = pipeline::solve(&scene, &settings, &progress)
         .with_context(|| format!("solving {}", args.scene.display()))?;
@@ -302,6 +415,61 @@ fn run_render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_formfactors(args: FormFactorArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    if !(args.max_reflectance > 0.0 && args.max_reflectance < 1.0) {
+        bail!("--max-reflectance must be in (0, 1)");
+    }
+    let options = LoadOptions {
+        max_reflectance: args.max_reflectance,
+    };
+    let scene = load_scene(&args.scene, &options)
+        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let mut settings = args.kernel.settings(args.common.seed)?;
+    settings.kernel = match args.method {
+        FormFactorMethod::Analytic => Kernel::PolygonPolygon,
+        FormFactorMethod::Sampling => Kernel::Sampling,
+        FormFactorMethod::Hemicube => Kernel::Hemicube,
+    };
+    let element_size = match (args.element_size, args.method) {
+        (Some(h), _) if h > 0.0 && h.is_finite() => h,
+        (Some(_), _) => bail!("--element-size must be positive"),
+        (None, FormFactorMethod::Hemicube) => scene.diagonal() * pipeline::DEFAULT_ELEMENT_FRACTION,
+        (None, _) => f64::INFINITY,
+    };
+    let mesh = nusselt::uniform::UniformMesh::new(&scene, element_size);
+    let bvh = pipeline::scene_bvh(&scene);
+    let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &progress)?;
+    let pairs = nusselt::surfaces::surface_form_factors(&scene, &mesh, &matrix);
+    let mut out = String::from("from,to,form_factor,reverse,reciprocity_error,row_sum\n");
+    for p in &pairs {
+        out.push_str(&format!(
+            "{},{},{:.9},{:.9},{:.3e},{:.9}\n",
+            csv_field(&p.from),
+            csv_field(&p.to),
+            p.form_factor,
+            p.reverse,
+            p.reciprocity_error,
+            p.row_sum
+        ));
+    }
+    print!("{out}");
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
+/// Quotes a CSV field when it needs it.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
 fn main() -> ExitCode {
     std::panic::set_hook(Box::new(|info| {
         let msg = info
@@ -323,6 +491,7 @@ fn main() -> ExitCode {
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Solve(args) => run_solve(args),
         Command::Render(args) => run_render(args),
+        Command::Formfactors(args) => run_formfactors(args),
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,

@@ -1,7 +1,7 @@
 //! The dense form-factor matrix of a uniform mesh, for the classic solvers.
 //!
-//! Owns: [`FormFactorMatrix`] and its assembly from the point-to-polygon
-//! kernel with ray-sampled visibility.
+//! Owns: [`FormFactorMatrix`] and its assembly with any of the kernels
+//! (point-polygon, polygon-polygon, area sampling, hemicube).
 //!
 //! Invariants:
 //! - Row i holds F_ij for receiver i and every source j (f32; sums are taken
@@ -9,15 +9,16 @@
 //! - A matrix is only allocated when it fits the memory budget; otherwise
 //!   assembly fails with a message naming the element count and the memory
 //!   it would take.
-//! - Entries depend only on the geometry, the seed and the ray count, not on
-//!   the thread count.
+//! - Entries depend only on the geometry and the settings (seed included),
+//!   not on the thread count.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::formfactor::form_factor_point_polygon;
+use crate::formfactor::{form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon_with};
 use crate::progress::Progress;
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
 use crate::uniform::UniformMesh;
@@ -26,11 +27,49 @@ use crate::visibility::TriangleBvh;
 /// Default memory budget for dense matrices: 2 GiB.
 pub const DEFAULT_MEMORY_BUDGET: u64 = 2 << 30;
 
+/// Which form-factor kernel fills the matrix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kernel {
+    /// Analytic form factor from the receiver's centroid to the source
+    /// polygon, times the visible fraction of `visibility_rays` rays.
+    PointPolygon,
+    /// Adaptive quadrature over the receiver of the analytic inner integral,
+    /// each point weighted by its visible fraction of the source.
+    PolygonPolygon,
+    /// Area sampling: `samples` stratified point pairs, one ray each.
+    Sampling,
+    /// A hemicube at each receiver's centroid; visibility by its z-buffer.
+    Hemicube,
+}
+
+impl Kernel {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::PointPolygon => "point-polygon",
+            Kernel::PolygonPolygon => "polygon-polygon",
+            Kernel::Sampling => "sampling",
+            Kernel::Hemicube => "hemicube",
+        }
+    }
+}
+
 /// How the matrix is assembled.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct MatrixSettings {
-    /// Visibility rays per element pair (stratified on both elements).
+    pub kernel: Kernel,
+    /// Visibility rays per element pair (point-polygon), or per quadrature
+    /// point (polygon-polygon).
     pub visibility_rays: usize,
+    /// Point pairs per element pair (sampling).
+    pub samples: usize,
+    /// Absolute tolerance on each form factor (polygon-polygon).
+    pub quadrature_tolerance: f64,
+    /// Top-face cells per side (hemicube).
+    pub hemicube_resolution: u32,
+    /// Turn each hemicube by a random angle about its normal (hemicube).
+    pub hemicube_rotation: bool,
     pub seed: u64,
     /// Largest matrix allowed, in bytes.
     pub memory_budget: u64,
@@ -39,17 +78,25 @@ pub struct MatrixSettings {
 impl Default for MatrixSettings {
     fn default() -> Self {
         MatrixSettings {
+            kernel: Kernel::PointPolygon,
             visibility_rays: 4,
+            samples: 16,
+            quadrature_tolerance: 1e-4,
+            hemicube_resolution: 128,
+            hemicube_rotation: true,
             seed: 0,
             memory_budget: DEFAULT_MEMORY_BUDGET,
         }
     }
 }
 
+/// Integrand evaluations one polygon-polygon matrix entry may spend.
+const QUADRATURE_BUDGET: usize = 2_000;
+
 /// Counters of an assembly.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct MatrixStats {
-    /// Pairs with a non-zero unoccluded form factor.
+    /// Non-zero entries.
     pub nonzero_pairs: u64,
     pub visibility_rays: u64,
     /// Largest and mean row sum Σ_j F_ij (closure: 1 in an enclosure).
@@ -132,11 +179,10 @@ impl FormFactorMatrix {
         self.values[i * self.n + j]
     }
 
-    /// Assembles F for `mesh`: the analytic form factor from each receiver's
-    /// centroid to each source polygon, times the fraction of
-    /// `visibility_rays` segments between stratified points of the two
-    /// elements that `bvh` leaves unblocked.
-    pub fn point_polygon(
+    /// Assembles F for `mesh` with the kernel of `settings`, rows in
+    /// parallel. Pairs on the same patch are zero (a planar patch does not
+    /// see itself).
+    pub fn assemble(
         mesh: &UniformMesh,
         bvh: &TriangleBvh,
         settings: &MatrixSettings,
@@ -144,63 +190,126 @@ impl FormFactorMatrix {
     ) -> Result<(FormFactorMatrix, MatrixStats)> {
         let n = mesh.elements.len();
         let mut matrix = Self::zeros(n, settings.memory_budget)?;
-        let rays = settings.visibility_rays.max(1);
         let phase = progress.phase("form factors", n as u64);
         let ray_count = AtomicU64::new(0);
-        let nonzero = AtomicU64::new(0);
+        let hemicube = (settings.kernel == Kernel::Hemicube)
+            .then(|| crate::hemicube::Hemicube::new(settings.hemicube_resolution));
+        let polygons: Vec<&[DVec3]> = mesh.elements.iter().map(|e| e.corners.as_slice()).collect();
         matrix
             .values
             .par_chunks_mut(n.max(1))
             .enumerate()
             .for_each(|(i, row)| {
-                let r = &mesh.elements[i];
-                let (mut row_rays, mut row_nonzero) = (0, 0);
-                for (j, s) in mesh.elements.iter().enumerate() {
-                    if s.patch == r.patch {
-                        continue;
-                    }
-                    let f = form_factor_point_polygon(r.centroid, r.normal, &s.corners);
-                    if f <= 0.0 {
-                        continue;
-                    }
-                    let mut rng = pair_stream(settings.seed, i as u32, j as u32);
-                    let from = stratified(rays, &mut rng);
-                    let to = stratified(rays, &mut rng);
-                    let visible = from
-                        .iter()
-                        .zip(&to)
-                        .filter(|(a, b)| {
-                            bvh.visible(
-                                point_in_polygon(&r.corners, **a),
-                                point_in_polygon(&s.corners, **b),
-                            )
-                        })
-                        .count();
-                    row_rays += rays as u64;
-                    if visible > 0 {
-                        row[j] = (f * visible as f64 / rays as f64) as f32;
-                        row_nonzero += 1;
-                    }
-                }
-                ray_count.fetch_add(row_rays, Ordering::Relaxed);
-                nonzero.fetch_add(row_nonzero, Ordering::Relaxed);
+                let rays = match &hemicube {
+                    Some(cube) => hemicube_row(mesh, &polygons, cube, settings, i, row),
+                    None => row_by_pairs(mesh, bvh, settings, i, row),
+                };
+                ray_count.fetch_add(rays, Ordering::Relaxed);
                 phase.inc(1);
             });
         let sums: Vec<f64> = (0..n)
             .map(|i| matrix.row(i).iter().map(|&f| f as f64).sum())
             .collect();
         let stats = MatrixStats {
-            nonzero_pairs: nonzero.into_inner(),
+            nonzero_pairs: matrix.values.iter().filter(|f| **f != 0.0).count() as u64,
             visibility_rays: ray_count.into_inner(),
             max_row_sum: sums.iter().copied().fold(0.0, f64::max),
-            mean_row_sum: if n > 0 {
-                sums.iter().sum::<f64>() / n as f64
-            } else {
-                0.0
-            },
+            mean_row_sum: if n > 0 { sums.iter().sum::<f64>() / n as f64 } else { 0.0 },
         };
         Ok((matrix, stats))
     }
+}
+
+/// Fills row `i` pair by pair with a ray-traced kernel; returns rays cast.
+fn row_by_pairs(mesh: &UniformMesh, bvh: &TriangleBvh, settings: &MatrixSettings, i: usize, row: &mut [f32]) -> u64 {
+    let r = &mesh.elements[i];
+    let mut rays_cast = 0u64;
+    for (j, s) in mesh.elements.iter().enumerate() {
+        if s.patch == r.patch {
+            continue;
+        }
+        // Cheap exact cull: no part of the source in front of the receiver.
+        if form_factor_point_polygon(r.centroid, r.normal, &s.corners) <= 0.0
+            && s.corners.iter().all(|p| (*p - r.centroid).dot(r.normal) <= 0.0)
+        {
+            continue;
+        }
+        let mut rng = pair_stream(settings.seed, i as u32, j as u32);
+        let f = match settings.kernel {
+            Kernel::PointPolygon => {
+                let f = form_factor_point_polygon(r.centroid, r.normal, &s.corners);
+                if f <= 0.0 {
+                    continue;
+                }
+                let rays = settings.visibility_rays.max(1);
+                let from = stratified(rays, &mut rng);
+                let to = stratified(rays, &mut rng);
+                let visible = from
+                    .iter()
+                    .zip(&to)
+                    .filter(|(a, b)| {
+                        bvh.visible(point_in_polygon(&r.corners, **a), point_in_polygon(&s.corners, **b))
+                    })
+                    .count();
+                rays_cast += rays as u64;
+                f * visible as f64 / rays as f64
+            }
+            Kernel::PolygonPolygon => {
+                let rays = settings.visibility_rays.max(1);
+                let targets: Vec<DVec3> = stratified(rays, &mut rng)
+                    .into_iter()
+                    .map(|t| point_in_polygon(&s.corners, t))
+                    .collect();
+                let cast = AtomicU64::new(0);
+                let estimate = form_factor_polygon_polygon_with(
+                    &r.corners,
+                    &s.corners,
+                    settings.quadrature_tolerance,
+                    QUADRATURE_BUDGET,
+                    |x| {
+                        cast.fetch_add(rays as u64, Ordering::Relaxed);
+                        targets.iter().filter(|y| bvh.visible(x, **y)).count() as f64 / rays as f64
+                    },
+                );
+                rays_cast += cast.into_inner();
+                estimate.value
+            }
+            Kernel::Sampling => {
+                let samples = settings.samples.max(1);
+                rays_cast += samples as u64;
+                form_factor_area_sampling(&r.corners, &s.corners, samples, &mut rng, |x, y| bvh.visible(x, y)).value
+            }
+            Kernel::Hemicube => unreachable!("hemicube rows are filled whole"),
+        };
+        row[j] = f.clamp(0.0, 1.0) as f32;
+    }
+    rays_cast
+}
+
+/// Fills row `i` from one hemicube at the receiver's centroid; no rays.
+fn hemicube_row(
+    mesh: &UniformMesh,
+    polygons: &[&[DVec3]],
+    cube: &crate::hemicube::Hemicube,
+    settings: &MatrixSettings,
+    i: usize,
+    row: &mut [f32],
+) -> u64 {
+    let r = &mesh.elements[i];
+    let rotation = if settings.hemicube_rotation {
+        use rand::Rng;
+        crate::sampling::stream(settings.seed, i as u64).random::<f64>() * std::f64::consts::TAU
+    } else {
+        0.0
+    };
+    let mut out = vec![0.0; polygons.len()];
+    cube.row(r.centroid, r.normal, polygons, Some(i), rotation, &mut out);
+    for (j, f) in out.iter().enumerate() {
+        if mesh.elements[j].patch != r.patch {
+            row[j] = f.clamp(0.0, 1.0) as f32;
+        }
+    }
+    0
 }
 
 #[cfg(test)]

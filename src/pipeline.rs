@@ -16,14 +16,14 @@ use serde_json::json;
 
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::matrix::{DEFAULT_MEMORY_BUDGET, FormFactorMatrix, MatrixSettings};
+use crate::matrix::{FormFactorMatrix, MatrixSettings};
 use crate::mesh::OutputMesh;
 use crate::output::{self, OutputSet};
 use crate::progress::Progress;
 use crate::render::{RenderSettings, render};
 use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report};
 use crate::scene::Scene;
-use crate::solve::{Convergence, jacobi};
+use crate::solve::{ClassicMethod, Convergence, System};
 use crate::uniform::UniformMesh;
 use crate::view::{View, ViewOverrides};
 use crate::visibility::TriangleBvh;
@@ -34,27 +34,29 @@ pub const DEFAULT_ELEMENT_FRACTION: f64 = 1.0 / 25.0;
 /// Everything `nusselt solve` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveSettings {
+    pub method: ClassicMethod,
     /// Largest element edge in metres; `None` = [`DEFAULT_ELEMENT_FRACTION`]
     /// of the scene diagonal.
     pub element_size: Option<f64>,
-    pub visibility_rays: usize,
-    pub seed: u64,
+    /// Form-factor kernel, rays, seed and memory budget.
+    pub matrix: MatrixSettings,
     pub convergence: Convergence,
-    pub memory_budget: u64,
     pub render: RenderSettings,
     pub view: ViewOverrides,
+    /// Iterations after which to render a snapshot.
+    pub snapshots: Vec<usize>,
 }
 
 impl Default for SolveSettings {
     fn default() -> Self {
         SolveSettings {
+            method: ClassicMethod::Jacobi,
             element_size: None,
-            visibility_rays: 4,
-            seed: 0,
+            matrix: MatrixSettings::default(),
             convergence: Convergence::default(),
-            memory_budget: DEFAULT_MEMORY_BUDGET,
             render: RenderSettings::default(),
             view: ViewOverrides::default(),
+            snapshots: Vec::new(),
         }
     }
 }
@@ -64,21 +66,33 @@ impl Default for SolveSettings {
 pub struct SolveRun {
     pub mesh: OutputMesh,
     pub frame: Frame,
+    /// Renders after the requested iterations, in order.
+    pub snapshots: Vec<(usize, Frame)>,
     pub report: Report,
+}
+
+/// The occluder BVH over every input triangle of `scene`.
+pub fn scene_bvh(scene: &Scene) -> TriangleBvh {
+    let occluders: Vec<[glam::Vec3; 3]> = scene
+        .triangles
+        .iter()
+        .map(|t| t.positions.map(|p| p.as_vec3()))
+        .collect();
+    TriangleBvh::new(&occluders, scene.diagonal())
 }
 
 fn secs(t: Instant) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
-/// Solves `scene` with the uniform-mesh Jacobi method and renders the
-/// default view. `report.times.load` and `report.scene` are left for the
+/// Solves `scene` with a classic method on a uniform mesh and renders the
+/// default view (and the requested snapshots). `report.times.load` and `report.scene` are left for the
 /// caller.
 pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Result<SolveRun> {
     let start = Instant::now();
     let mut report = Report {
         nusselt_version: env!("CARGO_PKG_VERSION").to_string(),
-        method: "jacobi".into(),
+        method: settings.method.name().into(),
         threads: rayon::current_num_threads(),
         warnings: scene.warnings.clone(),
         ..Report::default()
@@ -94,12 +108,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     }
 
     let t = Instant::now();
-    let occluders: Vec<[glam::Vec3; 3]> = scene
-        .triangles
-        .iter()
-        .map(|t| t.positions.map(|p| p.as_vec3()))
-        .collect();
-    let bvh = TriangleBvh::new(&occluders, scene.diagonal());
+    let bvh = scene_bvh(scene);
     report.times.bvh = secs(t);
 
     let t = Instant::now();
@@ -107,12 +116,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     report.times.mesh = secs(t);
 
     let t = Instant::now();
-    let matrix_settings = MatrixSettings {
-        visibility_rays: settings.visibility_rays,
-        seed: settings.seed,
-        memory_budget: settings.memory_budget,
-    };
-    let (matrix, stats) = FormFactorMatrix::point_polygon(&mesh, &bvh, &matrix_settings, progress)?;
+    let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;
     report.times.form_factors = secs(t);
 
     let t = Instant::now();
@@ -126,8 +130,32 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
         .iter()
         .map(|e| scene.patches[e.patch as usize].emission)
         .collect();
-    let solution = jacobi(&matrix, &reflectance, &emission, &settings.convergence);
-    report.times.solve = secs(t);
+    let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+    let system = System {
+        matrix: &matrix,
+        reflectance: &reflectance,
+        emission: &emission,
+        area: &area,
+    };
+    let mut snapshots = Vec::new();
+    let mut snapshot_time = 0.0;
+    let mut observe = |iteration: usize, b: &[DVec3]| {
+        if settings.snapshots.contains(&iteration) {
+            let t = Instant::now();
+            let out = mesh.output_mesh(scene, b);
+            snapshots.push((iteration, render(&out, &view, &settings.render, &Progress::hidden())));
+            snapshot_time += secs(t);
+        }
+    };
+    let solution = crate::solve::solve(
+        &system,
+        settings.method,
+        &settings.convergence,
+        settings.matrix.memory_budget,
+        &mut observe,
+    )?;
+    report.times.solve = secs(t) - snapshot_time;
+    report.times.render += snapshot_time;
     drop(matrix);
 
     let area = |i: usize| mesh.elements[i].area;
@@ -155,8 +183,10 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     };
     if !solution.converged {
         report.warnings.push(format!(
-            "Jacobi did not reach the tolerance {} within {} iterations",
-            settings.convergence.tolerance, settings.convergence.max_iterations
+            "{} did not reach the tolerance {} within {} iterations",
+            settings.method.name(),
+            settings.convergence.tolerance,
+            settings.convergence.max_iterations
         ));
     }
 
@@ -166,7 +196,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
 
     let t = Instant::now();
     let frame = render(&out, &view, &settings.render, progress);
-    report.times.render = secs(t);
+    report.times.render += secs(t);
 
     report.counts = Counts {
         input_triangles: scene.stats.input_triangles,
@@ -183,13 +213,12 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     report.max_row_sum = stats.max_row_sum;
     report.mean_row_sum = stats.mean_row_sum;
     report.settings = json!({
+        "method": settings.method,
         "element_size": element_size,
-        "visibility_rays": settings.visibility_rays,
-        "seed": settings.seed,
-        "tolerance": settings.convergence.tolerance,
-        "max_iterations": settings.convergence.max_iterations,
-        "memory_budget": settings.memory_budget,
-        "samples_per_pixel": settings.render.samples_per_pixel,
+        "matrix": settings.matrix,
+        "convergence": settings.convergence,
+        "render": settings.render,
+        "snapshots": settings.snapshots,
         "width": view.width,
         "height": view.height,
     });
@@ -199,6 +228,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     Ok(SolveRun {
         mesh: out,
         frame,
+        snapshots,
         report,
     })
 }
@@ -213,8 +243,8 @@ pub fn display_exposure(mesh: &OutputMesh) -> f32 {
     )
 }
 
-/// Writes the five outputs of the contract into `dir` (staged, then renamed
-/// together). Fills `report.times.write` before writing the report.
+/// Writes the five outputs of the contract, and any snapshots, into `dir`
+/// (staged, then renamed together). Fills `report.times.write` before writing the report.
 pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     let t = Instant::now();
     let mut set = OutputSet::create(dir)?;
@@ -225,6 +255,10 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     set.stage("baked.gltf", &gltf)?;
     set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
     set.stage("render.png", &output::png::encode_png(&run.frame, exposure)?)?;
+    for (iteration, frame) in &run.snapshots {
+        set.stage(&format!("snapshot-{iteration:05}.exr"), &output::exr::encode_image(frame)?)?;
+        set.stage(&format!("snapshot-{iteration:05}.png"), &output::png::encode_png(frame, exposure)?)?;
+    }
     run.report.times.write = secs(t);
     run.report.times.total += run.report.times.write;
     set.stage("report.json", &output::write_json(&run.report)?)?;

@@ -1,0 +1,191 @@
+//! The classic solvers and matrix kernels on closed boxes: the furnace and
+//! enclosure identities, closure and reciprocity, and agreement between
+//! solvers.
+
+use glam::DVec3;
+use nusselt::formfactor::form_factor_polygon_polygon;
+use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::progress::Progress;
+use nusselt::scene::{InputTriangle, Material, Scene, Surface};
+use nusselt::solve::{ClassicMethod, Convergence, System, solve};
+use nusselt::uniform::UniformMesh;
+use nusselt::visibility::TriangleBvh;
+
+const METHODS: [ClassicMethod; 4] = [
+    ClassicMethod::Direct,
+    ClassicMethod::Jacobi,
+    ClassicMethod::GaussSeidel,
+    ClassicMethod::Shooting,
+];
+
+/// A closed box (sides `size`) seen from inside, every face emitting
+/// radiance `le` with reflectance `rho`.
+fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
+    let s = size;
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x * s.x, y * s.y, z * s.z);
+    let quads = [
+        [p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)],
+        [p(0., 1., 0.), p(1., 1., 0.), p(1., 1., 1.), p(0., 1., 1.)],
+        [p(0., 0., 0.), p(1., 0., 0.), p(1., 1., 0.), p(0., 1., 0.)],
+        [p(0., 0., 1.), p(0., 1., 1.), p(1., 1., 1.), p(1., 0., 1.)],
+        [p(0., 0., 0.), p(0., 1., 0.), p(0., 1., 1.), p(0., 0., 1.)],
+        [p(1., 0., 0.), p(1., 0., 1.), p(1., 1., 1.), p(1., 1., 0.)],
+    ];
+    let mut tris = Vec::new();
+    for (k, q) in quads.iter().enumerate() {
+        for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+            tris.push(InputTriangle {
+                positions: t,
+                material: 0,
+                surface: k as u32,
+                reflectance: DVec3::splat(rho),
+                emitted_radiance: DVec3::splat(le),
+            });
+        }
+    }
+    let material = Material {
+        name: "furnace".into(),
+        reflectance: DVec3::splat(rho),
+        emitted_radiance: DVec3::splat(le),
+        double_sided: false,
+    };
+    let surfaces = (0..6)
+        .map(|k| Surface {
+            name: format!("face{k}"),
+            node: k,
+        })
+        .collect();
+    Scene::build(tris, vec![material], surfaces, vec![], vec![]).unwrap()
+}
+
+fn bvh(scene: &Scene) -> TriangleBvh {
+    nusselt::pipeline::scene_bvh(scene)
+}
+
+/// The matrix of `mesh` by exact (unoccluded) polygon-to-polygon
+/// quadrature: in a convex box nothing occludes.
+fn exact_matrix(mesh: &UniformMesh) -> FormFactorMatrix {
+    let n = mesh.elements.len();
+    let mut v = vec![0f32; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            if mesh.elements[i].patch != mesh.elements[j].patch {
+                v[i * n + j] = form_factor_polygon_polygon(&mesh.elements[i].corners, &mesh.elements[j].corners, 1e-7).value as f32;
+            }
+        }
+    }
+    FormFactorMatrix::from_values(n, v).unwrap()
+}
+
+fn system_vectors(scene: &Scene, mesh: &UniformMesh) -> (Vec<DVec3>, Vec<DVec3>, Vec<f64>) {
+    let rho = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].reflectance).collect();
+    let e = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].emission).collect();
+    let a = mesh.elements.iter().map(|e| e.area).collect();
+    (rho, e, a)
+}
+
+#[test]
+fn furnace_and_enclosure_identities_hold_for_every_solver() {
+    for rho in [0.5, 0.95] {
+        let le = 1.0 / std::f64::consts::PI; // E = 1
+        let scene = furnace_box(DVec3::new(1.0, 0.7, 1.3), le, rho);
+        let mesh = UniformMesh::new(&scene, 0.5);
+        let matrix = exact_matrix(&mesh);
+        let (r, e, a) = system_vectors(&scene, &mesh);
+        let system = System {
+            matrix: &matrix,
+            reflectance: &r,
+            emission: &e,
+            area: &a,
+        };
+        let expected = 1.0 / (1.0 - rho);
+        let phi: f64 = e.iter().zip(&a).map(|(e, a)| e.x * a).sum();
+        for method in METHODS {
+            let conv = Convergence {
+                tolerance: 1e-9,
+                max_iterations: 1_000_000,
+            };
+            let s = solve(&system, method, &conv, 1 << 30, &mut |_, _| {}).unwrap();
+            assert!(s.converged, "{method:?} ρ {rho}");
+            for b in &s.radiosity {
+                assert!(((b.x - expected) / expected).abs() < 1e-4, "{method:?} ρ {rho}: B = {} vs {expected}", b.x);
+            }
+            let total: f64 = s.radiosity.iter().zip(&a).map(|(b, a)| b.x * a).sum();
+            let identity = phi / (1.0 - rho);
+            assert!(((total - identity) / identity).abs() < 1e-4, "{method:?} ρ {rho}: Σ B A = {total} vs {identity}");
+        }
+    }
+}
+
+#[test]
+fn solvers_agree_on_the_same_matrix() {
+    let mut scene = furnace_box(DVec3::ONE, 0.0, 0.7);
+    // One emitting face only, as in a lit room.
+    for p in scene.patches.iter_mut().skip(1) {
+        p.emission = DVec3::ZERO;
+    }
+    scene.patches[0].emission = DVec3::new(3.0, 2.0, 1.0);
+    let mesh = UniformMesh::new(&scene, 0.34);
+    let matrix = exact_matrix(&mesh);
+    let (r, e, a) = system_vectors(&scene, &mesh);
+    let system = System {
+        matrix: &matrix,
+        reflectance: &r,
+        emission: &e,
+        area: &a,
+    };
+    let conv = Convergence {
+        tolerance: 1e-12,
+        max_iterations: 10_000_000,
+    };
+    let reference = solve(&system, ClassicMethod::Direct, &conv, 1 << 30, &mut |_, _| {}).unwrap();
+    for method in METHODS {
+        let s = solve(&system, method, &conv, 1 << 30, &mut |_, _| {}).unwrap();
+        for (x, y) in s.radiosity.iter().zip(&reference.radiosity) {
+            assert!((*x - *y).abs().max_element() <= 1e-6 * y.max_element(), "{method:?}: {x} vs {y}");
+        }
+    }
+}
+
+/// Row sums (closure) and reciprocity of each kernel's matrix in a closed
+/// box, against the exact matrix.
+#[test]
+fn kernels_close_the_box_and_keep_reciprocity() {
+    let scene = furnace_box(DVec3::new(1.0, 0.8, 1.2), 1.0, 0.5);
+    let mesh = UniformMesh::new(&scene, 0.4);
+    let bvh = bvh(&scene);
+    let exact = exact_matrix(&mesh);
+    let n = mesh.elements.len();
+    for (kernel, closure_tol, entry_tol) in [
+        (Kernel::PolygonPolygon, 2e-3, 2e-3),
+        (Kernel::PointPolygon, 0.05, 0.05),
+        (Kernel::Sampling, 0.05, 0.05),
+        (Kernel::Hemicube, 0.02, 0.05),
+    ] {
+        let settings = MatrixSettings {
+            kernel,
+            samples: 256,
+            hemicube_resolution: 256,
+            quadrature_tolerance: 1e-5,
+            ..MatrixSettings::default()
+        };
+        let (m, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden()).unwrap();
+        assert!((stats.mean_row_sum - 1.0).abs() < closure_tol, "{kernel:?}: mean row sum {}", stats.mean_row_sum);
+        // Entry-wise against the exact matrix, in the metric of the total
+        // transfer (sum of absolute errors per row).
+        let worst = (0..n)
+            .map(|i| (0..n).map(|j| (m.get(i, j) - exact.get(i, j)).abs() as f64).sum::<f64>())
+            .fold(0.0, f64::max);
+        assert!(worst < entry_tol * 4.0, "{kernel:?}: worst row L1 error {worst}");
+        // Reciprocity A_i F_ij = A_j F_ji, summed over pairs.
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..n {
+            for j in 0..n {
+                let (ai, aj) = (mesh.elements[i].area, mesh.elements[j].area);
+                num += (ai * m.get(i, j) as f64 - aj * m.get(j, i) as f64).abs();
+                den += ai * m.get(i, j) as f64;
+            }
+        }
+        assert!(num / den < entry_tol, "{kernel:?}: reciprocity error {}", num / den);
+    }
+}

@@ -1,0 +1,105 @@
+//! The classic methods on the Cornell box at several uniform resolutions:
+//! element count, form-factor time, solve time, peak memory and iterations
+//! to the residual tolerance.
+//!
+//! Run: `cargo run --release --example bench-classic [-- SCENE [FRACTIONS]]`
+//! where FRACTIONS is a comma list of element sizes as fractions of the
+//! scene diagonal (default 0.1,0.05,0.033,0.025). Each (resolution, method)
+//! runs in a child process of its own so that its peak resident memory
+//! (Linux `VmHWM`) is its own. Prints a Markdown table.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+use glam::DVec3;
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::pipeline::scene_bvh;
+use nusselt::progress::Progress;
+use nusselt::solve::{ClassicMethod, Convergence, System, solve};
+use nusselt::uniform::UniformMesh;
+
+const METHODS: [(&str, ClassicMethod); 4] = [
+    ("direct", ClassicMethod::Direct),
+    ("jacobi", ClassicMethod::Jacobi),
+    ("gauss-seidel", ClassicMethod::GaussSeidel),
+    ("shooting", ClassicMethod::Shooting),
+];
+
+fn peak_rss_mib() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<f64>().ok())
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+/// One configuration, in this (child) process: prints one table row.
+fn child(scene_path: &str, fraction: f64, method: &str) -> anyhow::Result<()> {
+    let scene = load_scene(Path::new(scene_path), &LoadOptions::default())?;
+    let (_, m) = METHODS
+        .iter()
+        .find(|(n, _)| *n == method)
+        .ok_or_else(|| anyhow::anyhow!("unknown method {method}"))?;
+    let mesh = UniformMesh::new(&scene, fraction * scene.diagonal());
+    let bvh = scene_bvh(&scene);
+    let t = Instant::now();
+    let settings = MatrixSettings {
+        kernel: Kernel::PointPolygon,
+        ..MatrixSettings::default()
+    };
+    let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden())?;
+    let ff_time = t.elapsed().as_secs_f64();
+    let rho: Vec<DVec3> = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].reflectance).collect();
+    let e: Vec<DVec3> = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].emission).collect();
+    let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+    let system = System {
+        matrix: &matrix,
+        reflectance: &rho,
+        emission: &e,
+        area: &area,
+    };
+    let conv = Convergence {
+        tolerance: 1e-6,
+        max_iterations: 10_000_000,
+    };
+    let t = Instant::now();
+    let s = solve(&system, *m, &conv, 8 << 30, &mut |_, _| {})?;
+    let solve_time = t.elapsed().as_secs_f64();
+    println!(
+        "| {fraction} | {} | {method} | {:.3} | {:.3} | {} | {} | {:.0} |",
+        mesh.elements.len(),
+        ff_time,
+        solve_time,
+        s.history.len(),
+        if s.converged { "yes" } else { "no" },
+        peak_rss_mib()
+    );
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() == 5 && args[1] == "--child" {
+        return child(&args[2], args[3].parse()?, &args[4]);
+    }
+    let scene = args.get(1).cloned().unwrap_or_else(|| "scenes/cornell-box.gltf".into());
+    let fractions = args.get(2).cloned().unwrap_or_else(|| "0.1,0.05,0.033,0.025".into());
+    println!("Scene {scene}; point-polygon kernel, 4 visibility rays; tolerance 1e-6 (gathering: relative change per sweep; shooting: unshot/emitted power).\n");
+    println!("| element size / diagonal | elements | method | form factors (s) | solve (s) | iterations | converged | peak memory (MiB) |");
+    println!("|---:|---:|---|---:|---:|---:|---|---:|");
+    let exe = std::env::current_exe()?;
+    for fraction in fractions.split(',') {
+        for (method, _) in METHODS {
+            let out = Command::new(&exe).args(["--child", &scene, fraction, method]).output()?;
+            print!("{}", String::from_utf8_lossy(&out.stdout));
+            if !out.status.success() {
+                eprintln!("{fraction} {method}: {}", String::from_utf8_lossy(&out.stderr).trim());
+            }
+        }
+    }
+    Ok(())
+}
