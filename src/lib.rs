@@ -7,6 +7,7 @@
 pub mod error;
 pub mod frame;
 pub mod mesh;
+pub mod output;
 pub mod scene;
 
 pub use error::{Error, Result};
