@@ -28,6 +28,10 @@ pub enum Error {
     /// An input file other than a scene (an image, a solution) is unreadable.
     #[error("cannot read {path}: {message}")]
     Input { path: PathBuf, message: String },
+    /// Data could not be turned into the bytes of an output format (before
+    /// any file is touched), e.g. a mesh whose arrays disagree in length.
+    #[error("cannot encode {what}: {message}")]
+    Encode { what: &'static str, message: String },
     /// A setting is out of range or inconsistent.
     #[error("invalid setting: {0}")]
     Setting(String),
@@ -46,6 +50,14 @@ impl Error {
     pub fn output(path: impl Into<PathBuf>, cause: impl std::fmt::Display) -> Self {
         Error::Output {
             path: path.into(),
+            message: cause.to_string(),
+        }
+    }
+
+    /// An encoding error for the format `what` from any displayable cause.
+    pub fn encode(what: &'static str, cause: impl std::fmt::Display) -> Self {
+        Error::Encode {
+            what,
             message: cause.to_string(),
         }
     }

@@ -1,7 +1,8 @@
 //! Integration tests, one module per topic.
 
-mod cli;
 mod classic;
+mod cli;
 mod closed_forms;
 mod end_to_end;
+mod output;
 mod util;

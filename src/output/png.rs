@@ -1,0 +1,107 @@
+//! 8-bit sRGB PNG encoding of linear images, with the exposure rule used for
+//! every display output. The only user of the `image` crate's PNG encoder.
+//!
+//! Tone map (documented for users): each channel of a pixel's radiance L is
+//! scaled by the exposure, clamped to [0, 1], passed through the sRGB
+//! transfer function (IEC 61966-2-1) and rounded to 8 bits:
+//!
+//! ```text
+//! v = clamp(L × exposure, 0, 1)        (NaN → 0)
+//! s = 12.92 v                          if v ≤ 0.0031308
+//!     1.055 v^(1/2.4) − 0.055          otherwise
+//! byte = round(255 s)
+//! ```
+//!
+//! Invariant: row 0 of the [`Frame`] is the top row of the PNG.
+
+use image::ImageEncoder;
+use image::codecs::png::PngEncoder;
+
+use crate::frame::Frame;
+use crate::{Error, Result};
+
+/// The fraction of the positive luminances that [`auto_exposure`] keeps
+/// below full scale.
+pub const AUTO_EXPOSURE_PERCENTILE: f64 = 0.99;
+/// The display value [`auto_exposure`] gives to that percentile.
+pub const AUTO_EXPOSURE_TARGET: f32 = 0.9;
+
+/// Luminance of linear Rec.709 / sRGB primaries: 0.2126 R + 0.7152 G +
+/// 0.0722 B.
+pub fn luminance(rgb: [f32; 3]) -> f32 {
+    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+}
+
+/// The exposure that maps the 99th percentile of the positive, finite
+/// luminances to display value 0.9: `0.9 / p99`.
+///
+/// So the brightest 1 % (typically a small emitter seen directly) clips to
+/// white while the rest of the image keeps its gradation. The percentile is
+/// the nearest-rank one (the ⌈0.99 k⌉-th smallest of k values). Without any
+/// positive finite luminance (a black image), or when the result would not
+/// be finite, the exposure is 1.
+pub fn auto_exposure(luminances: impl Iterator<Item = f32>) -> f32 {
+    let mut positive: Vec<f32> = luminances.filter(|l| l.is_finite() && *l > 0.0).collect();
+    if positive.is_empty() {
+        return 1.0;
+    }
+    let rank = (AUTO_EXPOSURE_PERCENTILE * positive.len() as f64).ceil() as usize;
+    let index = rank.clamp(1, positive.len()) - 1;
+    let (_, p, _) = positive.select_nth_unstable_by(index, f32::total_cmp);
+    let exposure = AUTO_EXPOSURE_TARGET / *p;
+    if exposure.is_finite() { exposure } else { 1.0 }
+}
+
+/// The sRGB transfer function applied to a display value in [0, 1].
+fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// The 8-bit sRGB code of linear value `linear` under `exposure` (the tone
+/// map of the module doc).
+pub fn display_byte(linear: f32, exposure: f32) -> u8 {
+    let scaled = linear * exposure;
+    let v = if scaled.is_nan() {
+        0.0
+    } else {
+        scaled.clamp(0.0, 1.0)
+    };
+    (srgb_encode(v) * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// Encodes `frame` as an 8-bit RGB PNG with the tone map of the module doc.
+/// `exposure` must be finite and non-negative.
+pub fn encode_png(frame: &Frame, exposure: f32) -> Result<Vec<u8>> {
+    if !exposure.is_finite() || exposure < 0.0 {
+        return Err(Error::Setting(format!(
+            "exposure {exposure} must be finite and non-negative"
+        )));
+    }
+    let (w, h) = (frame.width, frame.height);
+    if w == 0 || h == 0 {
+        return Err(Error::encode(
+            "the PNG image",
+            format!("the image is {w}×{h} pixels"),
+        ));
+    }
+    if frame.pixels.len() != w as usize * h as usize {
+        return Err(Error::encode(
+            "the PNG image",
+            format!("{} pixels for a {w}×{h} image", frame.pixels.len()),
+        ));
+    }
+    let bytes: Vec<u8> = frame
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|c| display_byte(c, exposure)))
+        .collect();
+    let mut out = Vec::new();
+    PngEncoder::new(&mut out)
+        .write_image(&bytes, w, h, image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::encode("the PNG image", e))?;
+    Ok(out)
+}
