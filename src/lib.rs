@@ -7,6 +7,7 @@
 pub mod error;
 pub mod formfactor;
 pub mod frame;
+pub mod hemicube;
 pub mod matrix;
 pub mod mesh;
 pub mod progress;
