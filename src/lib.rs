@@ -6,6 +6,7 @@
 
 pub mod error;
 pub mod frame;
+pub mod load;
 pub mod mesh;
 pub mod scene;
 

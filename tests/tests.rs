@@ -1,1 +1,4 @@
 //! Integration tests, one module per topic.
+
+mod fuzz_corpus;
+mod loader;
