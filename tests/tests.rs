@@ -4,5 +4,7 @@ mod classic;
 mod cli;
 mod closed_forms;
 mod end_to_end;
+mod fuzz_corpus;
+mod loader;
 mod output;
 mod util;

@@ -42,7 +42,7 @@ fn main() -> anyhow::Result<()> {
         let areas: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
         let total: f64 = areas.iter().sum();
         let mut rng = stream(42, 0);
-        let mut pick = |rng: &mut rand_pcg::Pcg64Mcg| -> DVec3 {
+        let pick = |rng: &mut rand_pcg::Pcg64Mcg| -> DVec3 {
             let mut x = rng.random::<f64>() * total;
             let mut k = 0;
             while k + 1 < areas.len() && x >= areas[k] {

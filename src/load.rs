@@ -1,0 +1,880 @@
+//! The glTF 2.0 loader: the only module that knows the `gltf` crate.
+//!
+//! Owns: reading a `.gltf` (external or data-URI buffers) or `.glb` file and
+//! mapping it, as the contract prescribes, onto the format-free scene model:
+//! world-space triangles with their averaged material values, materials,
+//! surfaces (one per node with a mesh) and perspective cameras, handed to
+//! [`Scene::build`].
+//!
+//! Invariants:
+//! - Untrusted input never panics and never drives an allocation: every
+//!   accessor is checked against the bytes actually loaded
+//!   ([`accessor::check`]) before it is read, node hierarchies are walked
+//!   iteratively and each node at most once (cycles and shared children are
+//!   errors), and the total triangle count is capped ([`MAX_TRIANGLES`]).
+//! - Positions and transforms are f64 from the first multiplication on.
+//! - Triangles leave counter-clockwise seen from their front in world space:
+//!   a node whose world transform has a negative determinant gets its
+//!   winding swapped.
+//! - Nothing is welded, merged or dropped here; [`Scene::build`] does that.
+//! - Errors are [`Error::Scene`] whose message names the mesh and primitive
+//!   (or node, material, image) at fault.
+
+mod accessor;
+mod texture;
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::{DMat4, DQuat, DVec2, DVec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+use gltf::{Document, Semantic};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::scene::{Camera, InputTriangle, Material, Scene, Surface};
+
+use self::accessor::Expect;
+use self::texture::{Sampler, Texture, UvTransform};
+
+/// Most triangles a scene may deliver (after instancing); about 4 GB of
+/// input triangles, far beyond what the solvers can handle.
+pub const MAX_TRIANGLES: usize = 1 << 25;
+
+/// Extensions whose effect the diffuse model ignores, when the file uses them.
+const IGNORED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_anisotropy",
+    "KHR_materials_clearcoat",
+    "KHR_materials_diffuse_transmission",
+    "KHR_materials_dispersion",
+    "KHR_materials_ior",
+    "KHR_materials_iridescence",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_sheen",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
+];
+
+/// Settings of the glTF mapping.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadOptions {
+    /// Reflectance components at or above this value are clamped to it (with
+    /// a warning naming the material). Must lie in (0, 1); default 0.999.
+    pub max_reflectance: f64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            max_reflectance: 0.999,
+        }
+    }
+}
+
+/// Loads the default scene of a `.gltf` or `.glb` file. External buffers and
+/// images are resolved against the file's folder.
+pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| Error::scene(path, format!("cannot read the file: {e}")))?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    load(&bytes, Some(base), path, options)
+}
+
+/// For fuzzing and tests: bytes of a .gltf or .glb; external URIs are
+/// resolved against `base_dir`, and are an error when it is `None`. Errors
+/// name the path `<memory>`.
+pub fn load_scene_from_slice(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    options: &LoadOptions,
+) -> Result<Scene> {
+    load(bytes, base_dir, Path::new("<memory>"), options)
+}
+
+fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -> Result<Scene> {
+    if !(options.max_reflectance > 0.0 && options.max_reflectance < 1.0) {
+        return Err(Error::Setting(format!(
+            "max reflectance {} is not in (0, 1)",
+            options.max_reflectance
+        )));
+    }
+    let scene_error = |message: String| Error::scene(path, message);
+    let (document, blob) = parse(bytes).map_err(scene_error)?;
+    check_uris(&document).map_err(scene_error)?;
+    let buffers = gltf::import_buffers(&document, base, blob)
+        .map_err(|e| scene_error(format!("cannot load buffers: {}", describe(&e))))?;
+    let mut loader = Loader {
+        document: &document,
+        buffers: &buffers,
+        base,
+        options,
+        triangles: Vec::new(),
+        materials: Vec::new(),
+        material_ids: HashMap::new(),
+        clamped: Vec::new(),
+        ignored: BTreeMap::new(),
+        surfaces: Vec::new(),
+        cameras: Vec::new(),
+        textures: HashMap::new(),
+        warnings: Vec::new(),
+        dropped_indices: 0,
+    };
+    loader.traverse().map_err(scene_error)?;
+    let warnings = loader.finish_warnings();
+    Scene::build(
+        loader.triangles,
+        loader.materials.into_iter().map(|m| m.material).collect(),
+        loader.surfaces,
+        loader.cameras,
+        warnings,
+    )
+}
+
+/// Splits GLB or reads JSON, then validates. Guards the `gltf` crate's own
+/// panics: a GLB header length below 12 and a POSITION index past the
+/// accessor list (its validation indexes without checking).
+fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
+    if bytes.starts_with(b"glTF") {
+        let Some(length) = bytes.get(8..12) else {
+            return Err("truncated GLB header".into());
+        };
+        let length = u32::from_le_bytes([length[0], length[1], length[2], length[3]]);
+        if (length as usize) < 12 {
+            return Err(format!("GLB header declares length {length} (below 12)"));
+        }
+    }
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| format!("not a valid glTF file: {}", describe(&e)))?;
+    let blob = gltf.blob;
+    let root = gltf.document.into_json();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = primitive
+                .attributes
+                .get(&gltf::json::validation::Checked::Valid(Semantic::Positions));
+            match position {
+                Some(index) if index.value() >= root.accessors.len() => {
+                    return Err(format!(
+                        "mesh {m} primitive {p}: POSITION accessor {} does not exist",
+                        index.value()
+                    ));
+                }
+                _ => {}
+            }
+        }
+    }
+    let document = Document::from_json(root)
+        .map_err(|e| format!("not a valid glTF file: {}", describe(&e)))?;
+    Ok((document, blob))
+}
+
+/// The `gltf` crate decodes percent-escapes of relative URIs with an
+/// `unwrap`: refuse URIs whose escapes are not UTF-8 first.
+fn check_uris(document: &Document) -> Result<(), String> {
+    let buffer_uris = document.buffers().filter_map(|b| match b.source() {
+        gltf::buffer::Source::Uri(uri) => Some((format!("buffer {}", b.index()), uri)),
+        gltf::buffer::Source::Bin => None,
+    });
+    let image_uris = document.images().filter_map(|i| match i.source() {
+        gltf::image::Source::Uri { uri, .. } => Some((format!("image {}", i.index()), uri)),
+        gltf::image::Source::View { .. } => None,
+    });
+    for (what, uri) in buffer_uris.chain(image_uris) {
+        if !uri.contains(':') && urlencoding::decode(uri).is_err() {
+            return Err(format!("{what}: URI '{uri}' has invalid percent-escapes"));
+        }
+    }
+    Ok(())
+}
+
+/// One line for a `gltf` error, listing validation problems by JSON path.
+fn describe(error: &gltf::Error) -> String {
+    match error {
+        gltf::Error::Validation(problems) => {
+            let shown: Vec<String> = problems
+                .iter()
+                .take(3)
+                .map(|(path, e)| format!("{path}: {e}"))
+                .collect();
+            let more = problems.len().saturating_sub(shown.len());
+            if more > 0 {
+                format!("{} (and {more} more)", shown.join("; "))
+            } else {
+                shown.join("; ")
+            }
+        }
+        gltf::Error::ExternalReferenceInSliceImport => {
+            "an external file is referenced but there is no folder to resolve it against".into()
+        }
+        other => other.to_string(),
+    }
+}
+
+/// A texture slot of a material, resolved.
+#[derive(Clone, Debug)]
+struct TextureSlot {
+    image: usize,
+    tex_coord: u32,
+    sampler: Sampler,
+    transform: Option<UvTransform>,
+    /// "baseColorTexture" or "emissiveTexture", for messages.
+    role: &'static str,
+}
+
+/// A material as the loader needs it while reading primitives.
+#[derive(Clone, Debug)]
+struct LoadedMaterial {
+    material: Material,
+    /// baseColorFactor.rgb before clamping.
+    base_factor: DVec3,
+    base_texture: Option<TextureSlot>,
+    /// emissiveFactor × emissive strength.
+    emission: DVec3,
+    emissive_texture: Option<TextureSlot>,
+}
+
+struct Loader<'a> {
+    document: &'a Document,
+    buffers: &'a [gltf::buffer::Data],
+    base: Option<&'a Path>,
+    options: &'a LoadOptions,
+    triangles: Vec<InputTriangle>,
+    materials: Vec<LoadedMaterial>,
+    /// glTF material index (`None`: the default material) → our index.
+    material_ids: HashMap<Option<usize>, u32>,
+    /// Per material: was some reflectance clamped?
+    clamped: Vec<bool>,
+    /// Ignored feature → names of the materials using it.
+    ignored: BTreeMap<&'static str, Vec<String>>,
+    surfaces: Vec<Surface>,
+    cameras: Vec<Camera>,
+    /// Decoded textures by image index.
+    textures: HashMap<usize, Arc<Texture>>,
+    warnings: Vec<String>,
+    /// Trailing indices that did not form a whole triangle.
+    dropped_indices: usize,
+}
+
+impl Loader<'_> {
+    /// Walks the default scene depth-first, children in file order.
+    fn traverse(&mut self) -> Result<(), String> {
+        let document = self.document;
+        let roots: Vec<gltf::Node<'_>> = match document
+            .default_scene()
+            .or_else(|| document.scenes().next())
+        {
+            Some(scene) => scene.nodes().collect(),
+            None => {
+                let mut is_child = vec![false; document.nodes().len()];
+                for node in document.nodes() {
+                    for child in node.children() {
+                        is_child[child.index()] = true;
+                    }
+                }
+                let roots: Vec<_> = document.nodes().filter(|n| !is_child[n.index()]).collect();
+                if !roots.is_empty() {
+                    self.warnings
+                        .push("the file has no scene; using all root nodes".into());
+                }
+                roots
+            }
+        };
+        let mut visited = vec![false; document.nodes().len()];
+        let mut stack: Vec<(gltf::Node<'_>, DMat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, DMat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            let index = node.index();
+            if std::mem::replace(&mut visited[index], true) {
+                return Err(format!(
+                    "node {} is reached twice: the node hierarchy has a cycle or a shared child",
+                    node_label(&node)
+                ));
+            }
+            let world = parent * local_transform(&node)?;
+            if !world.is_finite() {
+                return Err(format!(
+                    "node {}: the world transform is not finite",
+                    node_label(&node)
+                ));
+            }
+            if let Some(mesh) = node.mesh() {
+                self.add_mesh(&node, &mesh, &world)?;
+            }
+            if let Some(camera) = node.camera() {
+                self.add_camera(&node, &camera, &world);
+            }
+            let children: Vec<_> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        Ok(())
+    }
+
+    fn add_mesh(
+        &mut self,
+        node: &gltf::Node<'_>,
+        mesh: &gltf::Mesh<'_>,
+        world: &DMat4,
+    ) -> Result<(), String> {
+        let name = node
+            .name()
+            .or(mesh.name())
+            .map_or_else(|| format!("node{}", node.index()), str::to_string);
+        let surface = self.surfaces.len() as u32;
+        self.surfaces.push(Surface {
+            name,
+            node: node.index(),
+        });
+        let flip = world.determinant() < 0.0;
+        for primitive in mesh.primitives() {
+            let label = format!("mesh {} primitive {}", mesh_label(mesh), primitive.index());
+            self.add_primitive(&primitive, world, flip, surface)
+                .map_err(|e| format!("{label}: {e}"))?;
+        }
+        Ok(())
+    }
+
+    fn add_primitive(
+        &mut self,
+        primitive: &gltf::Primitive<'_>,
+        world: &DMat4,
+        flip: bool,
+        surface: u32,
+    ) -> Result<(), String> {
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            return Err(format!(
+                "primitive mode {mode:?} is not supported (only triangles, strips and fans)"
+            ));
+        }
+        let buffers = self.buffers;
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+
+        let position_accessor = primitive
+            .get(&Semantic::Positions)
+            .ok_or("no POSITION attribute")?;
+        accessor::check(
+            &position_accessor,
+            &Expect {
+                role: "POSITION".into(),
+                types: &[DataType::F32],
+                dimensions: Dimensions::Vec3,
+            },
+            buffers,
+        )?;
+        let n_vertices = position_accessor.count();
+        let mut positions = Vec::with_capacity(n_vertices);
+        for (i, p) in reader
+            .read_positions()
+            .ok_or("POSITION data is unreadable")?
+            .enumerate()
+        {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(format!("vertex {i} has a non-finite position {p:?}"));
+            }
+            positions.push(world.transform_point3(DVec3::from_array(p.map(f64::from))));
+        }
+
+        let indices: Vec<u32> = match primitive.indices() {
+            Some(acc) => {
+                accessor::check(
+                    &acc,
+                    &Expect {
+                        role: "indices".into(),
+                        types: &[DataType::U8, DataType::U16, DataType::U32],
+                        dimensions: Dimensions::Scalar,
+                    },
+                    buffers,
+                )?;
+                let indices: Vec<u32> = reader
+                    .read_indices()
+                    .ok_or("index data is unreadable")?
+                    .into_u32()
+                    .collect();
+                if let Some(bad) = indices.iter().find(|&&i| i as usize >= n_vertices) {
+                    return Err(format!("index {bad} out of range ({n_vertices} vertices)"));
+                }
+                indices
+            }
+            None => {
+                let n = u32::try_from(n_vertices)
+                    .map_err(|_| format!("{n_vertices} vertices are too many"))?;
+                (0..n).collect()
+            }
+        };
+        let corners = assemble(mode, &indices, flip, &mut self.dropped_indices);
+        if self.triangles.len() + corners.len() > MAX_TRIANGLES {
+            return Err(format!("the scene has more than {MAX_TRIANGLES} triangles"));
+        }
+
+        let material = self.material(primitive)?;
+        let loaded = self.materials[material as usize].clone();
+        let reflectance = self.slot_means(
+            primitive,
+            loaded
+                .base_texture
+                .as_ref()
+                .filter(|_| loaded.base_factor != DVec3::ZERO),
+            &corners,
+            n_vertices,
+        )?;
+        let emission = self.slot_means(
+            primitive,
+            loaded
+                .emissive_texture
+                .as_ref()
+                .filter(|_| loaded.emission != DVec3::ZERO),
+            &corners,
+            n_vertices,
+        )?;
+        let max = self.options.max_reflectance;
+        self.triangles.reserve(corners.len());
+        for (t, c) in corners.iter().enumerate() {
+            let mut rho = loaded.base_factor * reflectance.as_ref().map_or(DVec3::ONE, |r| r[t]);
+            if rho.max_element() >= max {
+                self.clamped[material as usize] = true;
+                rho = rho.min(DVec3::splat(max));
+            }
+            let emitted = loaded.emission * emission.as_ref().map_or(DVec3::ONE, |e| e[t]);
+            self.triangles.push(InputTriangle {
+                positions: c.map(|i| positions[i as usize]),
+                material,
+                surface,
+                reflectance: rho,
+                emitted_radiance: emitted,
+            });
+        }
+        Ok(())
+    }
+
+    /// Per-triangle texture means of one material slot, or `None` without a
+    /// texture (or when its factor is zero, so the texture cannot matter).
+    fn slot_means(
+        &mut self,
+        primitive: &gltf::Primitive<'_>,
+        slot: Option<&TextureSlot>,
+        corners: &[[u32; 3]],
+        n_vertices: usize,
+    ) -> Result<Option<Vec<DVec3>>, String> {
+        let Some(slot) = slot else {
+            return Ok(None);
+        };
+        let set = slot.tex_coord;
+        let role = format!("TEXCOORD_{set}");
+        let Some(acc) = primitive.get(&Semantic::TexCoords(set)) else {
+            return Err(format!(
+                "the material's {} uses {role}, which the primitive lacks",
+                slot.role
+            ));
+        };
+        accessor::check(
+            &acc,
+            &Expect {
+                role: role.clone(),
+                types: &[DataType::F32, DataType::U8, DataType::U16],
+                dimensions: Dimensions::Vec2,
+            },
+            self.buffers,
+        )?;
+        if acc.data_type() != DataType::F32 && !acc.normalized() {
+            return Err(format!(
+                "{role} accessor {} holds integers that are not normalized",
+                acc.index()
+            ));
+        }
+        if acc.count() != n_vertices {
+            return Err(format!(
+                "{role} has {} elements but POSITION has {n_vertices}",
+                acc.count()
+            ));
+        }
+        let buffers = self.buffers;
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let mut uvs = Vec::with_capacity(n_vertices);
+        for (i, uv) in reader
+            .read_tex_coords(set)
+            .ok_or_else(|| format!("{role} data is unreadable"))?
+            .into_f32()
+            .enumerate()
+        {
+            if !uv.iter().all(|c| c.is_finite()) {
+                return Err(format!("vertex {i} has a non-finite {role} {uv:?}"));
+            }
+            let uv = DVec2::new(uv[0].into(), uv[1].into());
+            uvs.push(slot.transform.map_or(uv, |t| t.apply(uv)));
+        }
+        let texture = self.texture(slot.image)?;
+        let sampler = slot.sampler;
+        Ok(Some(
+            corners
+                .par_iter()
+                .map(|c| texture.triangle_mean(c.map(|i| uvs[i as usize]), &sampler))
+                .collect(),
+        ))
+    }
+
+    /// The decoded texture of image `index`, decoding it on first use.
+    fn texture(&mut self, index: usize) -> Result<Arc<Texture>, String> {
+        if let Some(t) = self.textures.get(&index) {
+            return Ok(t.clone());
+        }
+        let image = self
+            .document
+            .images()
+            .nth(index)
+            .ok_or_else(|| format!("image {index} does not exist"))?;
+        let label = match image.name() {
+            Some(name) => format!("image {index} ('{name}')"),
+            None => format!("image {index}"),
+        };
+        let bytes: Vec<u8> = match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let data = self
+                    .buffers
+                    .get(view.buffer().index())
+                    .map_or(&[][..], |d| &d.0[..]);
+                let range = view.offset()..view.offset().saturating_add(view.length());
+                data.get(range)
+                    .ok_or_else(|| {
+                        format!("{label}: buffer view {} exceeds its buffer", view.index())
+                    })?
+                    .to_vec()
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), self.base)
+                    .map_err(|e| {
+                        format!("{label}: cannot read '{}': {}", short(uri), describe(&e))
+                    })?
+                    .0
+            }
+        };
+        let texture =
+            Arc::new(Texture::decode(&bytes).map_err(|e| format!("{label}: cannot decode: {e}"))?);
+        self.textures.insert(index, texture.clone());
+        Ok(texture)
+    }
+
+    /// Our index of the primitive's material, converting it on first use.
+    fn material(&mut self, primitive: &gltf::Primitive<'_>) -> Result<u32, String> {
+        let material = primitive.material();
+        let key = material.index();
+        if let Some(&id) = self.material_ids.get(&key) {
+            return Ok(id);
+        }
+        let loaded = self.convert_material(&material)?;
+        let id = self.materials.len() as u32;
+        self.clamped
+            .push(loaded.material.reflectance != loaded.base_factor);
+        self.materials.push(loaded);
+        self.material_ids.insert(key, id);
+        Ok(id)
+    }
+
+    fn convert_material(&mut self, m: &gltf::Material<'_>) -> Result<LoadedMaterial, String> {
+        let name = match (m.name(), m.index()) {
+            (Some(name), _) => name.to_string(),
+            (None, Some(i)) => format!("material{i}"),
+            (None, None) => "default".to_string(),
+        };
+        let label = format!("material '{name}'");
+        let pbr = m.pbr_metallic_roughness();
+        let [r, g, b, _] = pbr.base_color_factor();
+        let base_factor = DVec3::new(r.into(), g.into(), b.into());
+        if !(base_factor.is_finite() && base_factor.min_element() >= 0.0) {
+            return Err(format!(
+                "{label}: baseColorFactor {base_factor} is not a colour"
+            ));
+        }
+        let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
+        let emission = DVec3::from_array(m.emissive_factor().map(f64::from)) * strength;
+        if !(emission.is_finite() && emission.min_element() >= 0.0) {
+            return Err(format!(
+                "{label}: emissive factor × strength {emission} is negative or not finite"
+            ));
+        }
+        let base_texture = pbr
+            .base_color_texture()
+            .map(|info| texture_slot(&info, "baseColorTexture"))
+            .transpose()
+            .map_err(|e| format!("{label}: {e}"))?;
+        let emissive_texture = m
+            .emissive_texture()
+            .map(|info| texture_slot(&info, "emissiveTexture"))
+            .transpose()
+            .map_err(|e| format!("{label}: {e}"))?;
+
+        let mut ignore = |feature: &'static str| {
+            self.ignored.entry(feature).or_default().push(name.clone());
+        };
+        if pbr.metallic_factor() > 0.0 || pbr.metallic_roughness_texture().is_some() {
+            ignore("metallic");
+        }
+        if pbr.roughness_factor() < 1.0 || pbr.metallic_roughness_texture().is_some() {
+            ignore("roughness");
+        }
+        if m.normal_texture().is_some() {
+            ignore("normal maps");
+        }
+        if m.occlusion_texture().is_some() {
+            ignore("occlusion maps");
+        }
+        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            ignore("transparency (alphaMode)");
+        }
+        if m.unlit() {
+            ignore("KHR_materials_unlit");
+        }
+
+        let max = self.options.max_reflectance;
+        Ok(LoadedMaterial {
+            material: Material {
+                name,
+                reflectance: base_factor.min(DVec3::splat(max)),
+                emitted_radiance: emission,
+                double_sided: m.double_sided(),
+            },
+            base_factor,
+            base_texture,
+            emission,
+            emissive_texture,
+        })
+    }
+
+    fn add_camera(&mut self, node: &gltf::Node<'_>, camera: &gltf::Camera<'_>, world: &DMat4) {
+        let name = camera
+            .name()
+            .or(node.name())
+            .map_or_else(|| format!("camera{}", camera.index()), str::to_string);
+        let perspective = match camera.projection() {
+            gltf::camera::Projection::Perspective(p) => p,
+            gltf::camera::Projection::Orthographic(_) => {
+                self.warnings.push(format!(
+                    "camera '{name}' is orthographic; only perspective cameras are used"
+                ));
+                return;
+            }
+        };
+        let yfov = f64::from(perspective.yfov());
+        let aspect_ratio = perspective.aspect_ratio().map(f64::from);
+        let eye = world.transform_point3(DVec3::ZERO);
+        let forward = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+        let up = world.transform_vector3(DVec3::Y);
+        let up = (up - up.dot(forward) * forward).normalize_or_zero();
+        let valid_fov = yfov > 0.0 && yfov < std::f64::consts::PI;
+        let valid_aspect = aspect_ratio.is_none_or(|a| a.is_finite() && a > 0.0);
+        if forward == DVec3::ZERO || up == DVec3::ZERO || !valid_fov || !valid_aspect {
+            self.warnings.push(format!(
+                "camera '{name}' has a degenerate view (direction, up, yfov or aspect ratio); skipped"
+            ));
+            return;
+        }
+        self.cameras.push(Camera {
+            name,
+            eye,
+            forward,
+            up,
+            yfov,
+            aspect_ratio,
+        });
+    }
+
+    /// Scene-wide warnings, appended after the per-item ones.
+    fn finish_warnings(&mut self) -> Vec<String> {
+        let mut warnings = std::mem::take(&mut self.warnings);
+        if self.dropped_indices > 0 {
+            warnings.push(format!(
+                "ignored {} trailing index(es) that did not form a whole triangle",
+                self.dropped_indices
+            ));
+        }
+        for (m, clamped) in self.materials.iter().zip(&self.clamped) {
+            if *clamped {
+                warnings.push(format!(
+                    "material '{}': reflectance clamped to {} (components at or above it)",
+                    m.material.name, self.options.max_reflectance
+                ));
+            }
+        }
+        let mut ignored: Vec<String> = self
+            .ignored
+            .iter()
+            .map(|(feature, names)| format!("{feature} ({})", quoted_list(names)))
+            .collect();
+        for ext in self.document.extensions_used() {
+            if IGNORED_EXTENSIONS.contains(&ext) {
+                ignored.push(ext.to_string());
+            }
+        }
+        if !ignored.is_empty() {
+            warnings.push(format!(
+                "ignored by the diffuse model: {}",
+                ignored.join("; ")
+            ));
+        }
+        warnings
+    }
+}
+
+/// Resolves a textureInfo: image, texture coordinate set, sampler, transform.
+fn texture_slot(info: &gltf::texture::Info<'_>, role: &'static str) -> Result<TextureSlot, String> {
+    let texture = info.texture();
+    let mut tex_coord = info.tex_coord();
+    let transform = match info.texture_transform() {
+        Some(t) => {
+            if let Some(set) = t.tex_coord() {
+                tex_coord = set;
+            }
+            let [ox, oy] = t.offset();
+            let [sx, sy] = t.scale();
+            let transform = UvTransform {
+                offset: DVec2::new(ox.into(), oy.into()),
+                rotation: t.rotation().into(),
+                scale: DVec2::new(sx.into(), sy.into()),
+            };
+            if !(transform.offset.is_finite()
+                && transform.scale.is_finite()
+                && transform.rotation.is_finite())
+            {
+                return Err(format!("{role}: KHR_texture_transform is not finite"));
+            }
+            Some(transform)
+        }
+        None => None,
+    };
+    Ok(TextureSlot {
+        image: texture.source().index(),
+        tex_coord,
+        sampler: Sampler::from_gltf(&texture.sampler()),
+        transform,
+        role,
+    })
+}
+
+/// Triangles (vertex indices, counter-clockwise in world space) of a
+/// triangle-list, strip or fan index sequence.
+fn assemble(mode: Mode, indices: &[u32], flip: bool, dropped: &mut usize) -> Vec<[u32; 3]> {
+    let mut tris: Vec<[u32; 3]> = match mode {
+        Mode::Triangles => {
+            *dropped += indices.len() % 3;
+            indices
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect()
+        }
+        Mode::TriangleStrip => indices
+            .windows(3)
+            .enumerate()
+            .map(|(i, w)| {
+                if i % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[0], w[2], w[1]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => indices
+            .windows(2)
+            .skip(1)
+            .map(|w| [w[0], w[1], indices[0]])
+            .collect(),
+        _ => Vec::new(),
+    };
+    if flip {
+        for t in &mut tris {
+            t.swap(1, 2);
+        }
+    }
+    tris
+}
+
+/// The node's local transform in f64 (matrix, or T·R·S).
+fn local_transform(node: &gltf::Node<'_>) -> Result<DMat4, String> {
+    match node.transform() {
+        gltf::scene::Transform::Matrix { matrix } => {
+            Ok(DMat4::from_cols_array_2d(&matrix.map(|c| c.map(f64::from))))
+        }
+        gltf::scene::Transform::Decomposed {
+            translation,
+            rotation,
+            scale,
+        } => {
+            let q = DQuat::from_array(rotation.map(f64::from));
+            let len = q.length();
+            if !(len.is_finite() && len > 0.0) {
+                return Err(format!(
+                    "node {}: rotation {rotation:?} is not a quaternion",
+                    node_label(node)
+                ));
+            }
+            Ok(DMat4::from_scale_rotation_translation(
+                DVec3::from_array(scale.map(f64::from)),
+                q / len,
+                DVec3::from_array(translation.map(f64::from)),
+            ))
+        }
+    }
+}
+
+fn node_label(node: &gltf::Node<'_>) -> String {
+    match node.name() {
+        Some(name) => format!("'{}' ({})", short(name), node.index()),
+        None => node.index().to_string(),
+    }
+}
+
+fn mesh_label(mesh: &gltf::Mesh<'_>) -> String {
+    match mesh.name() {
+        Some(name) => format!("'{}'", short(name)),
+        None => mesh.index().to_string(),
+    }
+}
+
+/// A name or URI cut to a length that keeps messages on one line.
+fn short(s: &str) -> String {
+    const MAX: usize = 80;
+    let one_line: String = s
+        .chars()
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect();
+    if one_line.chars().count() > MAX {
+        format!("{}…", one_line.chars().take(MAX).collect::<String>())
+    } else {
+        one_line
+    }
+}
+
+fn quoted_list(names: &[String]) -> String {
+    names
+        .iter()
+        .map(|n| format!("'{}'", short(n)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_keep_the_winding() {
+        let mut dropped = 0;
+        let strip = assemble(Mode::TriangleStrip, &[0, 1, 2, 3], false, &mut dropped);
+        assert_eq!(strip, vec![[0, 1, 2], [1, 3, 2]]);
+        let fan = assemble(Mode::TriangleFan, &[0, 1, 2, 3], false, &mut dropped);
+        assert_eq!(fan, vec![[1, 2, 0], [2, 3, 0]]);
+        let list = assemble(Mode::Triangles, &[0, 1, 2, 3], true, &mut dropped);
+        assert_eq!(list, vec![[0, 2, 1]]);
+        assert_eq!(dropped, 1);
+    }
+}

@@ -1,0 +1,81 @@
+//! Replays the fuzz corpus and any recorded crash inputs through the fuzz
+//! target's body on stable Rust: no input may panic the loader.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+use nusselt::load::{LoadOptions, load_scene_from_slice};
+
+/// The body of `fuzz/fuzz_targets/load_gltf.rs`.
+fn fuzz_body(data: &[u8]) {
+    let _ = load_scene_from_slice(data, None, &LoadOptions::default());
+}
+
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut files: Vec<PathBuf> = entries
+        .map(|e| e.expect("readable directory entry").path())
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    files
+}
+
+fn fuzz_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz")
+}
+
+#[test]
+fn corpus_and_regressions_never_panic() {
+    let corpus = files_in(&fuzz_dir().join("corpus/load_gltf"));
+    assert!(corpus.len() >= 10, "the seed corpus is missing");
+    let regressions = files_in(&fuzz_dir().join("regressions"));
+    let mut panicked = Vec::new();
+    for file in corpus.iter().chain(&regressions) {
+        let data = std::fs::read(file).expect("readable corpus file");
+        if catch_unwind(AssertUnwindSafe(|| fuzz_body(&data))).is_err() {
+            panicked.push(file.display().to_string());
+        }
+    }
+    assert!(panicked.is_empty(), "the loader panicked on: {panicked:?}");
+}
+
+#[test]
+fn seed_corpus_covers_valid_and_broken_inputs() {
+    let dir = fuzz_dir().join("corpus/load_gltf");
+    let load = |name: &str| {
+        let data = std::fs::read(dir.join(name)).expect("seed file");
+        load_scene_from_slice(&data, None, &LoadOptions::default())
+    };
+    for name in [
+        "quad.gltf",
+        "quad.glb",
+        "textured.gltf",
+        "textured.glb",
+        "sparse.gltf",
+    ] {
+        if let Err(e) = load(name) {
+            panic!("{name} should load: {e}");
+        }
+    }
+    let textured = load("textured.gltf").unwrap();
+    assert_eq!(textured.cameras.len(), 1);
+    assert!(textured.stats.back_patches > 0);
+    for (name, needle) in [
+        ("nan.gltf", "mesh 'NaN' primitive 0"),
+        ("bad_index.gltf", "mesh 'BadIndex' primitive 0: index 17"),
+        ("lines.gltf", "mesh 'Lines' primitive 0"),
+        ("cycle.gltf", "reached twice"),
+        ("huge_count.gltf", "exceed"),
+        ("truncated.glb", "not a valid glTF"),
+        ("malformed.gltf", "not a valid glTF"),
+        ("no_emitters.glb", "no emitting surfaces"),
+    ] {
+        match load(name) {
+            Ok(_) => panic!("{name} should fail"),
+            Err(e) => assert!(e.to_string().contains(needle), "{name}: {e}"),
+        }
+    }
+}
