@@ -307,8 +307,7 @@ fn run_solve(args: SolveArgs) -> Result<()> {
     let options = LoadOptions {
         max_reflectance: args.max_reflectance,
     };
-    let scene = load_scene(&args.scene, &options)
-        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let scene = load_scene(&args.scene, &options)?;
     let load_time = start.elapsed().as_secs_f64();
     let settings = SolveSettings {
         method: args.method.classic(),
@@ -424,8 +423,7 @@ fn run_formfactors(args: FormFactorArgs) -> Result<()> {
     let options = LoadOptions {
         max_reflectance: args.max_reflectance,
     };
-    let scene = load_scene(&args.scene, &options)
-        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let scene = load_scene(&args.scene, &options)?;
     let mut settings = args.kernel.settings(args.common.seed)?;
     settings.kernel = match args.method {
         FormFactorMethod::Analytic => Kernel::PolygonPolygon,

@@ -119,7 +119,7 @@ fn furnace_and_enclosure_identities_hold_for_every_solver() {
 
 #[test]
 fn solvers_agree_on_the_same_matrix() {
-    let mut scene = furnace_box(DVec3::ONE, 0.0, 0.7);
+    let mut scene = furnace_box(DVec3::ONE, 1.0, 0.7);
     // One emitting face only, as in a lit room.
     for p in scene.patches.iter_mut().skip(1) {
         p.emission = DVec3::ZERO;
@@ -156,11 +156,15 @@ fn kernels_close_the_box_and_keep_reciprocity() {
     let bvh = bvh(&scene);
     let exact = exact_matrix(&mesh);
     let n = mesh.elements.len();
-    for (kernel, closure_tol, entry_tol) in [
-        (Kernel::PolygonPolygon, 2e-3, 2e-3),
-        (Kernel::PointPolygon, 0.05, 0.05),
-        (Kernel::Sampling, 0.05, 0.05),
-        (Kernel::Hemicube, 0.02, 0.05),
+    // (kernel, closure tolerance, row L1 tolerance, reciprocity tolerance):
+    // the centroid-based kernels (point-polygon, hemicube) are not
+    // reciprocal for neighbouring elements, by construction; area sampling
+    // has unbounded variance there (1/r² at the shared edge).
+    for (kernel, closure_tol, entry_tol, reciprocity_tol) in [
+        (Kernel::PolygonPolygon, 2e-3, 2e-3, 2e-3),
+        (Kernel::PointPolygon, 0.05, 0.2, 0.1),
+        (Kernel::Sampling, 0.05, 0.2, 0.1),
+        (Kernel::Hemicube, 0.05, 0.2, 0.1),
     ] {
         let settings = MatrixSettings {
             kernel,
@@ -176,7 +180,7 @@ fn kernels_close_the_box_and_keep_reciprocity() {
         let worst = (0..n)
             .map(|i| (0..n).map(|j| (m.get(i, j) - exact.get(i, j)).abs() as f64).sum::<f64>())
             .fold(0.0, f64::max);
-        assert!(worst < entry_tol * 4.0, "{kernel:?}: worst row L1 error {worst}");
+        assert!(worst < entry_tol, "{kernel:?}: worst row L1 error {worst}");
         // Reciprocity A_i F_ij = A_j F_ji, summed over pairs.
         let (mut num, mut den) = (0.0, 0.0);
         for i in 0..n {
@@ -186,6 +190,11 @@ fn kernels_close_the_box_and_keep_reciprocity() {
                 den += ai * m.get(i, j) as f64;
             }
         }
-        assert!(num / den < entry_tol, "{kernel:?}: reciprocity error {}", num / den);
+        assert!(num / den < reciprocity_tol, "{kernel:?}: reciprocity error {}", num / den);
+        eprintln!(
+            "{kernel:?}: mean row sum {:.5}, worst row L1 error {worst:.5}, reciprocity error {:.5}",
+            stats.mean_row_sum,
+            num / den
+        );
     }
 }
