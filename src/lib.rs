@@ -5,6 +5,11 @@
 //! does no printing: it returns results and diagnostics, and only [`output`]
 //! writes files.
 
+// `!(x > y)` is used on purpose throughout: it rejects NaN along with the
+// values the comparison excludes. Index loops are the clearest form of the
+// numeric kernels here.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
 pub mod error;
 pub mod formfactor;
 pub mod frame;

@@ -5,6 +5,9 @@
 //! through clap). Invariant: nothing a user can cause ends in a panic
 //! message or a backtrace; an internal bug is still reported as one line.
 
+// `!(x > y)` rejects NaN along with out-of-range values, on purpose.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
