@@ -7,4 +7,5 @@ mod end_to_end;
 mod fuzz_corpus;
 mod loader;
 mod output;
+mod scenes;
 mod util;

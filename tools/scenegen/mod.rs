@@ -1,0 +1,67 @@
+//! The bundled-scene generator behind `cargo run --example gen-scenes`.
+//!
+//! Owns the scene definitions (`cornell`, `goral`, `two_squares`,
+//! `interior`), their encoding to glTF (`encode`) and the scenes' README
+//! (`readme`). Invariant: generation is a pure function of this code, so the
+//! files in `scenes/` are byte-identical on every run; the test
+//! `scenes::bundled_scenes_are_up_to_date` regenerates them and compares.
+
+pub mod cornell;
+pub mod encode;
+pub mod goral;
+pub mod interior;
+pub mod lattice;
+pub mod model;
+pub mod readme;
+pub mod shapes;
+pub mod two_squares;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use model::{BufferStorage, SceneDef};
+
+/// Every bundled scene, in README order.
+pub fn scenes() -> Vec<SceneDef> {
+    vec![
+        cornell::scene(),
+        goral::scene(),
+        interior::scene(),
+        two_squares::scene(),
+    ]
+}
+
+/// The files of every scene and the README, as (file name, bytes), in a
+/// fixed order.
+pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
+    let scenes = scenes();
+    let mut files = Vec::new();
+    for scene in &scenes {
+        let (root, bin) = encode::encode(scene).with_context(|| format!("scene {}", scene.stem))?;
+        let mut json = serde_json::to_string_pretty(&root)?;
+        json.push('\n');
+        files.push((format!("{}.gltf", scene.stem), json.into_bytes()));
+        if scene.storage == BufferStorage::External {
+            files.push((format!("{}.bin", scene.stem), bin));
+        }
+    }
+    files.push((
+        "README.md".to_owned(),
+        readme::readme(&scenes)?.into_bytes(),
+    ));
+    Ok(files)
+}
+
+/// Writes every file of [`render_all`] into `dir` (created if missing) and
+/// returns the paths written.
+pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut written = Vec::new();
+    for (name, bytes) in render_all()? {
+        let path = dir.join(&name);
+        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        written.push(path);
+    }
+    Ok(written)
+}

@@ -1,0 +1,167 @@
+//! The generator's own description of a scene, before it becomes glTF.
+//!
+//! Geometry is kept in `f64` metres and only rounded to the micrometre (then
+//! to `f32`) by the encoder, so that trigonometry-built shapes give the same
+//! bytes on every run. Every triangle is listed counter-clockwise seen from
+//! its front (lit) side, as glTF requires.
+
+use glam::{DQuat, DVec3};
+
+/// A diffuse material: reflectance ρ and, for emitters, the emitted radiance.
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: &'static str,
+    /// ρ, written as `baseColorFactor.rgb`; every component below 1.
+    pub reflectance: [f64; 3],
+    pub emission: Option<Emission>,
+    /// Where the numbers come from, for the README.
+    pub note: &'static str,
+}
+
+/// Emitted radiance L_e = `factor` × `strength`.
+#[derive(Clone, Copy, Debug)]
+pub struct Emission {
+    /// `emissiveFactor`, every component in [0, 1].
+    pub factor: [f64; 3],
+    /// `KHR_materials_emissive_strength.emissiveStrength`; `None` writes no
+    /// extension (a strength of 1).
+    pub strength: Option<f64>,
+}
+
+impl Emission {
+    /// L_e in W·m⁻²·sr⁻¹ per channel.
+    pub fn radiance(&self) -> [f64; 3] {
+        let s = self.strength.unwrap_or(1.0);
+        self.factor.map(|c| c * s)
+    }
+
+    /// Emission of radiance `l` split into a factor whose largest component
+    /// is 1 and a strength carrying the magnitude.
+    pub fn with_strength(l: [f64; 3]) -> Emission {
+        let peak = l.iter().copied().fold(0.0, f64::max);
+        Emission {
+            factor: l.map(|c| c / peak),
+            strength: Some(peak),
+        }
+    }
+}
+
+/// A named triangle list with one material.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub name: String,
+    pub material: usize,
+    pub triangles: Vec<[DVec3; 3]>,
+}
+
+/// A perspective camera; it looks down its node's local −z with +y up.
+#[derive(Clone, Copy, Debug)]
+pub struct Camera {
+    /// Vertical field of view in radians.
+    pub yfov: f64,
+    pub aspect_ratio: f64,
+    pub znear: f64,
+}
+
+/// A named node: a mesh, a camera, or a group of children.
+#[derive(Clone, Debug, Default)]
+pub struct Node {
+    pub name: String,
+    pub mesh: Option<usize>,
+    pub camera: Option<Camera>,
+    pub translation: Option<DVec3>,
+    pub rotation: Option<DQuat>,
+    pub children: Vec<usize>,
+}
+
+/// How the geometry buffer is stored next to the JSON.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BufferStorage {
+    /// `<stem>.bin` beside the `.gltf`.
+    External,
+    /// A base64 `data:` URI inside the `.gltf`.
+    Embedded,
+}
+
+/// One bundled scene.
+#[derive(Clone, Debug)]
+pub struct SceneDef {
+    /// File name without `.gltf`.
+    pub stem: &'static str,
+    pub title: &'static str,
+    /// Markdown prose for the README: what the scene shows and why.
+    pub about: String,
+    pub storage: BufferStorage,
+    pub materials: Vec<Material>,
+    pub meshes: Vec<Mesh>,
+    pub nodes: Vec<Node>,
+    /// Nodes of the glTF scene's root list, in order.
+    pub roots: Vec<usize>,
+}
+
+impl SceneDef {
+    pub fn new(stem: &'static str, title: &'static str, storage: BufferStorage) -> SceneDef {
+        SceneDef {
+            stem,
+            title,
+            about: String::new(),
+            storage,
+            materials: Vec::new(),
+            meshes: Vec::new(),
+            nodes: Vec::new(),
+            roots: Vec::new(),
+        }
+    }
+
+    pub fn add_material(&mut self, material: Material) -> usize {
+        self.materials.push(material);
+        self.materials.len() - 1
+    }
+
+    pub fn add_mesh(&mut self, name: &str, material: usize, triangles: Vec<[DVec3; 3]>) -> usize {
+        self.meshes.push(Mesh {
+            name: name.to_owned(),
+            material,
+            triangles,
+        });
+        self.meshes.len() - 1
+    }
+
+    /// Adds a node (not yet attached to any parent) and returns its index.
+    pub fn add_node(&mut self, node: Node) -> usize {
+        self.nodes.push(node);
+        self.nodes.len() - 1
+    }
+
+    /// A root node holding a new mesh of the same name, placed at the origin.
+    pub fn add_surface(&mut self, name: &str, material: usize, triangles: Vec<[DVec3; 3]>) {
+        let mesh = self.add_mesh(name, material, triangles);
+        let node = self.add_node(Node {
+            name: name.to_owned(),
+            mesh: Some(mesh),
+            ..Node::default()
+        });
+        self.roots.push(node);
+    }
+
+    /// A root camera node at `eye` looking at `target` with `up` roughly up.
+    pub fn add_camera(&mut self, name: &str, eye: DVec3, target: DVec3, up: DVec3, camera: Camera) {
+        let node = self.add_node(Node {
+            name: name.to_owned(),
+            camera: Some(camera),
+            translation: Some(eye),
+            rotation: Some(look_rotation(target - eye, up)),
+            ..Node::default()
+        });
+        self.roots.push(node);
+    }
+}
+
+/// The rotation taking the camera frame (looking down −z, +y up) to one
+/// looking along `forward` with `up` as close to up as possible.
+pub fn look_rotation(forward: DVec3, up: DVec3) -> DQuat {
+    let back = -forward.normalize();
+    let right = up.cross(back).normalize();
+    let true_up = back.cross(right);
+    DQuat::from_mat3(&glam::DMat3::from_cols(right, true_up, back)).normalize()
+}

@@ -1,0 +1,229 @@
+//! Writes `scenes/README.md` from the scene definitions, so that every
+//! number in it (reflectances, radiances, areas, triangle counts, camera)
+//! is the one in the files.
+
+use std::f64::consts::PI;
+use std::fmt::Write as _;
+
+use anyhow::Result;
+use glam::{DAffine3, DVec3};
+
+use super::encode::index_mesh;
+use super::model::{BufferStorage, SceneDef};
+
+fn rgb(c: [f64; 3]) -> String {
+    format!("({}, {}, {})", num(c[0]), num(c[1]), num(c[2]))
+}
+
+/// A short decimal: up to 4 significant decimals, trailing zeros dropped.
+fn num(x: f64) -> String {
+    let s = format!("{x:.4}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".to_owned()
+    } else {
+        s.to_owned()
+    }
+}
+
+fn vec3(v: DVec3) -> String {
+    format!("({}, {}, {})", num(v.x), num(v.y), num(v.z))
+}
+
+/// World transform of every node reachable from the roots (None otherwise).
+fn world_transforms(scene: &SceneDef) -> Vec<Option<DAffine3>> {
+    let mut out = vec![None; scene.nodes.len()];
+    let mut stack: Vec<(usize, DAffine3)> = scene
+        .roots
+        .iter()
+        .rev()
+        .map(|&r| (r, DAffine3::IDENTITY))
+        .collect();
+    while let Some((n, parent)) = stack.pop() {
+        let node = &scene.nodes[n];
+        let local = DAffine3::from_rotation_translation(
+            node.rotation.unwrap_or_default(),
+            node.translation.unwrap_or_default(),
+        );
+        let world = parent * local;
+        out[n] = Some(world);
+        stack.extend(node.children.iter().rev().map(|&c| (c, world)));
+    }
+    out
+}
+
+fn triangle_area(t: &[DVec3; 3]) -> f64 {
+    0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()
+}
+
+fn scene_section(out: &mut String, scene: &SceneDef) -> Result<()> {
+    let world = world_transforms(scene);
+    writeln!(out, "## {} (`{}.gltf`)\n", scene.title, scene.stem)?;
+    writeln!(out, "{}\n", scene.about)?;
+    match scene.storage {
+        BufferStorage::External => writeln!(
+            out,
+            "Files: `{0}.gltf` with its geometry in `{0}.bin`.\n",
+            scene.stem
+        )?,
+        BufferStorage::Embedded => writeln!(
+            out,
+            "Files: `{}.gltf` alone; its buffer is embedded as a base64 `data:` URI.\n",
+            scene.stem
+        )?,
+    }
+
+    writeln!(
+        out,
+        "Materials (all single-sided, metallic 0, roughness 1):\n"
+    )?;
+    writeln!(
+        out,
+        "| material | ρ = baseColorFactor.rgb | L_e (W·m⁻²·sr⁻¹) | E = π L_e (W·m⁻²) | notes |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|")?;
+    for m in &scene.materials {
+        let (le, e) = match m.emission {
+            Some(em) => {
+                let l = em.radiance();
+                let how = match em.strength {
+                    Some(s) => format!(
+                        "{} = {} × {} (emissiveFactor × emissiveStrength)",
+                        rgb(l),
+                        rgb(em.factor),
+                        num(s)
+                    ),
+                    None => format!("{} (emissiveFactor, no strength extension)", rgb(l)),
+                };
+                (how, rgb(l.map(|c| c * PI)))
+            }
+            None => ("—".to_owned(), "—".to_owned()),
+        };
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} |",
+            m.name,
+            rgb(m.reflectance),
+            le,
+            e,
+            m.note
+        )?;
+    }
+
+    writeln!(
+        out,
+        "\nSurfaces (one glTF node each; areas in world space):\n"
+    )?;
+    writeln!(out, "| node | mesh | material | triangles | area (m²) |")?;
+    writeln!(out, "|---|---|---|---|---|")?;
+    let (mut n_tris, mut n_verts) = (0, 0);
+    let mut power = [0.0f64; 3];
+    for (n, node) in scene.nodes.iter().enumerate() {
+        let (Some(m), Some(xf)) = (node.mesh, world[n]) else {
+            continue;
+        };
+        let mesh = &scene.meshes[m];
+        let area: f64 = mesh
+            .triangles
+            .iter()
+            .map(|t| triangle_area(&t.map(|p| xf.transform_point3(p))))
+            .sum();
+        n_tris += mesh.triangles.len();
+        n_verts += index_mesh(&mesh.name, &mesh.triangles)?.positions.len();
+        let material = &scene.materials[mesh.material];
+        if let Some(e) = material.emission {
+            for (p, l) in power.iter_mut().zip(e.radiance()) {
+                *p += PI * l * area;
+            }
+        }
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} |",
+            node.name,
+            mesh.name,
+            material.name,
+            mesh.triangles.len(),
+            num(area)
+        )?;
+    }
+    writeln!(
+        out,
+        "\nIn all: {n_tris} triangles, {n_verts} vertices (welded per mesh, counted per node). \
+Emitted power Σ E·A = {} W per channel.\n",
+        rgb(power)
+    )?;
+
+    for (n, node) in scene.nodes.iter().enumerate() {
+        let (Some(c), Some(xf)) = (node.camera, world[n]) else {
+            continue;
+        };
+        let eye = xf.transform_point3(DVec3::ZERO);
+        let dir = xf.transform_vector3(DVec3::NEG_Z).normalize();
+        let up = xf.transform_vector3(DVec3::Y).normalize();
+        writeln!(
+            out,
+            "Camera `{}`: perspective, at {} m, looking along {}, up {}, vertical field of view \
+{}° ({} rad), aspect ratio {}.\n",
+            node.name,
+            vec3(eye),
+            vec3(dir),
+            vec3(up),
+            num(c.yfov.to_degrees()),
+            num(c.yfov),
+            num(c.aspect_ratio)
+        )?;
+    }
+    Ok(())
+}
+
+/// The whole README.
+pub fn readme(scenes: &[SceneDef]) -> Result<String> {
+    let mut out = String::new();
+    writeln!(out, "# Bundled scenes\n")?;
+    writeln!(
+        out,
+        "These glTF 2.0 files are written by `tools/gen_scenes.rs` (definitions in \
+`tools/scenegen/`), and so is this note: do not edit them by hand. Regenerate them, \
+byte for byte, with\n\n    cargo run --release --example gen-scenes -- scenes/\n\n\
+The test `scenes::bundled_scenes_are_up_to_date` fails when the committed files differ \
+from what the generator writes.\n"
+    )?;
+    writeln!(
+        out,
+        "Conventions in every scene: lengths in metres, +y up, right-handed; front faces \
+counter-clockwise, and every surface's front faces the space it lights or is lit from (room \
+walls face into the room, boxes face outwards, lights face down); reflectance \
+ρ = `baseColorFactor.rgb`, emitted radiance L_e = `emissiveFactor` × \
+`KHR_materials_emissive_strength.emissiveStrength` (1 without the extension), emitted \
+exitance E = π L_e; all materials single-sided, `metallicFactor` 0, `roughnessFactor` 1; \
+quads are written as two triangles; positions are rounded to the micrometre. Each scene has \
+one perspective camera node, which looks down its local −z.\n"
+    )?;
+    writeln!(out, "| scene | title | triangles | buffer |")?;
+    writeln!(out, "|---|---|---|---|")?;
+    for s in scenes {
+        let world = world_transforms(s);
+        let tris: usize = s
+            .nodes
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| world[*n].is_some())
+            .filter_map(|(_, node)| node.mesh)
+            .map(|m| s.meshes[m].triangles.len())
+            .sum();
+        let buffer = match s.storage {
+            BufferStorage::External => format!("`{}.bin`", s.stem),
+            BufferStorage::Embedded => "embedded (base64)".to_owned(),
+        };
+        writeln!(
+            out,
+            "| `{}.gltf` | {} | {} | {} |",
+            s.stem, s.title, tris, buffer
+        )?;
+    }
+    writeln!(out)?;
+    for s in scenes {
+        scene_section(&mut out, s)?;
+    }
+    Ok(out)
+}
