@@ -176,9 +176,10 @@ struct KernelArgs {
     /// Visibility rays per element pair (point-polygon) or per quadrature point (polygon-polygon).
     #[arg(long, default_value_t = 4)]
     visibility_rays: usize,
-    /// Point pairs per element pair (sampling).
-    #[arg(long, default_value_t = 16)]
-    samples: usize,
+    /// Point pairs per element pair (sampling; default 16 for `solve`,
+    /// 4096 for `formfactors`).
+    #[arg(long)]
+    samples: Option<usize>,
     /// Absolute tolerance of each form factor (polygon-polygon).
     #[arg(long, default_value_t = 1e-4)]
     quadrature_tolerance: f64,
@@ -194,7 +195,7 @@ struct KernelArgs {
 }
 
 impl KernelArgs {
-    fn settings(&self, seed: u64) -> Result<MatrixSettings> {
+    fn settings(&self, seed: u64, default_samples: usize) -> Result<MatrixSettings> {
         if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
             bail!("--memory-budget must be a positive number of GiB");
         }
@@ -212,7 +213,7 @@ impl KernelArgs {
                 KernelName::Hemicube => Kernel::Hemicube,
             },
             visibility_rays: self.visibility_rays.max(1),
-            samples: self.samples.max(1),
+            samples: self.samples.unwrap_or(default_samples).max(1),
             quadrature_tolerance: self.quadrature_tolerance,
             hemicube_resolution: self.hemicube_resolution,
             hemicube_rotation: !self.no_hemicube_rotation,
@@ -306,7 +307,7 @@ fn run_solve(args: SolveArgs) -> Result<()> {
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }
-    let matrix = args.kernel.settings(args.common.seed)?;
+    let matrix = args.kernel.settings(args.common.seed, 16)?;
     let options = LoadOptions {
         max_reflectance: args.max_reflectance,
     };
@@ -427,7 +428,7 @@ fn run_formfactors(args: FormFactorArgs) -> Result<()> {
         max_reflectance: args.max_reflectance,
     };
     let scene = load_scene(&args.scene, &options)?;
-    let mut settings = args.kernel.settings(args.common.seed)?;
+    let mut settings = args.kernel.settings(args.common.seed, 4096)?;
     settings.kernel = match args.method {
         FormFactorMethod::Analytic => Kernel::PolygonPolygon,
         FormFactorMethod::Sampling => Kernel::Sampling,

@@ -66,7 +66,8 @@ impl Default for SolveSettings {
 pub struct SolveRun {
     pub mesh: OutputMesh,
     pub frame: Frame,
-    /// Renders after the requested iterations, in order.
+    /// Renders after the requested iterations (the final state for those
+    /// past the last iteration).
     pub snapshots: Vec<(usize, Frame)>,
     pub report: Report,
 }
@@ -197,6 +198,13 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     let t = Instant::now();
     let frame = render(&out, &view, &settings.render, progress);
     report.times.render += secs(t);
+    // Snapshots asked for after the solver stopped show the final state.
+    let last = solution.history.len();
+    for &k in &settings.snapshots {
+        if k > last && !snapshots.iter().any(|(j, _)| *j == k) {
+            snapshots.push((k, frame.clone()));
+        }
+    }
 
     report.counts = Counts {
         input_triangles: scene.stats.input_triangles,
