@@ -137,8 +137,9 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
 }
 
 /// Splits GLB or reads JSON, then validates. Guards the `gltf` crate's own
-/// panics: a GLB header length below 12 and a POSITION index past the
-/// accessor list (its validation indexes without checking).
+/// panics: a GLB header length below 12, a POSITION index past the accessor
+/// list (its validation indexes without checking), images without a source
+/// or MIME type and cameras without their projection (its getters unwrap).
 fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
     if bytes.starts_with(b"glTF") {
         let Some(length) = bytes.get(8..12) else {
@@ -167,6 +168,33 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
                 }
                 _ => {}
             }
+        }
+    }
+    // `gltf` unwraps these where its validation does not look.
+    for (i, image) in root.images.iter().enumerate() {
+        let complete = match (&image.buffer_view, &image.uri) {
+            (Some(_), _) => image.mime_type.is_some(),
+            (None, uri) => uri.is_some(),
+        };
+        if !complete {
+            return Err(format!(
+                "image {i} needs a uri, or a bufferView with a mimeType"
+            ));
+        }
+    }
+    for (i, camera) in root.cameras.iter().enumerate() {
+        use gltf::json::camera::Type;
+        use gltf::json::validation::Checked;
+        let complete = match camera.type_ {
+            Checked::Valid(Type::Perspective) => camera.perspective.is_some(),
+            Checked::Valid(Type::Orthographic) => camera.orthographic.is_some(),
+            Checked::Invalid => true, // reported by validation
+        };
+        if !complete {
+            return Err(format!(
+                "camera {i} lacks the block of its type ({:?})",
+                camera.type_
+            ));
         }
     }
     let document = Document::from_json(root)

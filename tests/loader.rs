@@ -825,6 +825,18 @@ fn dangling_references_are_errors_not_panics() {
     let (_, mut json) = valid_json();
     json["nodes"][0]["mesh"] = json!(7);
     assert!(scene_error(load_json(&json)).contains("not a valid glTF"));
+    // Found by fuzzing: an image with neither uri nor bufferView, and one
+    // with a bufferView but no mimeType, made `gltf` unwrap None.
+    for image in [json!({"name": "nothing"}), json!({"bufferView": 0})] {
+        let (_, mut json) = valid_json();
+        json["images"] = json!([image]);
+        assert!(scene_error(load_json(&json)).contains("image 0 needs"));
+    }
+    // A camera whose type names a missing block.
+    let (_, mut json) = valid_json();
+    json["cameras"] = json!([{"type": "perspective", "orthographic":
+        {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}]);
+    assert!(scene_error(load_json(&json)).contains("camera 0 lacks"));
     let (_, mut json) = valid_json();
     json["buffers"][0]["uri"] = json!("%ff%fe.bin");
     scene_error(load_scene_from_slice(
