@@ -87,7 +87,11 @@ pub fn form_factor_point_polygon(x: DVec3, normal: DVec3, polygon: &[DVec3]) -> 
         }
     }
     let f = sum.abs() / (2.0 * std::f64::consts::PI);
-    if f.is_finite() { f.clamp(0.0, 1.0) } else { 0.0 }
+    if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
 }
 
 /// Sutherland–Hodgman clip of `polygon` to {p : (p − x) · n ≥ 0}. Writes the
@@ -164,7 +168,11 @@ pub const MAX_EVALUATIONS: usize = 2_000_000;
 /// let f = form_factor_polygon_polygon(&sq(0.0), &top, 1e-9);
 /// assert!((f.value - 0.199825).abs() < 1e-6);
 /// ```
-pub fn form_factor_polygon_polygon(receiver: &[DVec3], source: &[DVec3], tolerance: f64) -> Estimate {
+pub fn form_factor_polygon_polygon(
+    receiver: &[DVec3],
+    source: &[DVec3],
+    tolerance: f64,
+) -> Estimate {
     form_factor_polygon_polygon_with(receiver, source, tolerance, MAX_EVALUATIONS, |_| 1.0)
 }
 

@@ -199,7 +199,10 @@ impl KernelArgs {
         if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
             bail!("--memory-budget must be a positive number of GiB");
         }
-        if self.hemicube_resolution < 2 || self.hemicube_resolution % 2 != 0 || self.hemicube_resolution > 8192 {
+        if self.hemicube_resolution < 2
+            || self.hemicube_resolution % 2 != 0
+            || self.hemicube_resolution > 8192
+        {
             bail!("--hemicube-resolution must be an even number from 2 to 8192");
         }
         if !(self.quadrature_tolerance > 0.0) {

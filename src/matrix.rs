@@ -18,7 +18,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::formfactor::{form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon_with};
+use crate::formfactor::{
+    form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon_with,
+};
 use crate::progress::Progress;
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
 use crate::uniform::UniformMesh;
@@ -214,14 +216,24 @@ impl FormFactorMatrix {
             nonzero_pairs: matrix.values.iter().filter(|f| **f != 0.0).count() as u64,
             visibility_rays: ray_count.into_inner(),
             max_row_sum: sums.iter().copied().fold(0.0, f64::max),
-            mean_row_sum: if n > 0 { sums.iter().sum::<f64>() / n as f64 } else { 0.0 },
+            mean_row_sum: if n > 0 {
+                sums.iter().sum::<f64>() / n as f64
+            } else {
+                0.0
+            },
         };
         Ok((matrix, stats))
     }
 }
 
 /// Fills row `i` pair by pair with a ray-traced kernel; returns rays cast.
-fn row_by_pairs(mesh: &UniformMesh, bvh: &TriangleBvh, settings: &MatrixSettings, i: usize, row: &mut [f32]) -> u64 {
+fn row_by_pairs(
+    mesh: &UniformMesh,
+    bvh: &TriangleBvh,
+    settings: &MatrixSettings,
+    i: usize,
+    row: &mut [f32],
+) -> u64 {
     let r = &mesh.elements[i];
     let mut rays_cast = 0u64;
     for (j, s) in mesh.elements.iter().enumerate() {
@@ -230,7 +242,9 @@ fn row_by_pairs(mesh: &UniformMesh, bvh: &TriangleBvh, settings: &MatrixSettings
         }
         // Cheap exact cull: no part of the source in front of the receiver.
         if form_factor_point_polygon(r.centroid, r.normal, &s.corners) <= 0.0
-            && s.corners.iter().all(|p| (*p - r.centroid).dot(r.normal) <= 0.0)
+            && s.corners
+                .iter()
+                .all(|p| (*p - r.centroid).dot(r.normal) <= 0.0)
         {
             continue;
         }
@@ -248,7 +262,10 @@ fn row_by_pairs(mesh: &UniformMesh, bvh: &TriangleBvh, settings: &MatrixSettings
                     .iter()
                     .zip(&to)
                     .filter(|(a, b)| {
-                        bvh.visible(point_in_polygon(&r.corners, **a), point_in_polygon(&s.corners, **b))
+                        bvh.visible(
+                            point_in_polygon(&r.corners, **a),
+                            point_in_polygon(&s.corners, **b),
+                        )
                     })
                     .count();
                 rays_cast += rays as u64;
@@ -277,7 +294,10 @@ fn row_by_pairs(mesh: &UniformMesh, bvh: &TriangleBvh, settings: &MatrixSettings
             Kernel::Sampling => {
                 let samples = settings.samples.max(1);
                 rays_cast += samples as u64;
-                form_factor_area_sampling(&r.corners, &s.corners, samples, &mut rng, |x, y| bvh.visible(x, y)).value
+                form_factor_area_sampling(&r.corners, &s.corners, samples, &mut rng, |x, y| {
+                    bvh.visible(x, y)
+                })
+                .value
             }
             Kernel::Hemicube => unreachable!("hemicube rows are filled whole"),
         };

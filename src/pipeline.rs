@@ -144,7 +144,10 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
         if settings.snapshots.contains(&iteration) {
             let t = Instant::now();
             let out = mesh.output_mesh(scene, b);
-            snapshots.push((iteration, render(&out, &view, &settings.render, &Progress::hidden())));
+            snapshots.push((
+                iteration,
+                render(&out, &view, &settings.render, &Progress::hidden()),
+            ));
             snapshot_time += secs(t);
         }
     };
@@ -262,10 +265,19 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     set.stage("baked.bin", &bin)?;
     set.stage("baked.gltf", &gltf)?;
     set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
-    set.stage("render.png", &output::png::encode_png(&run.frame, exposure)?)?;
+    set.stage(
+        "render.png",
+        &output::png::encode_png(&run.frame, exposure)?,
+    )?;
     for (iteration, frame) in &run.snapshots {
-        set.stage(&format!("snapshot-{iteration:05}.exr"), &output::exr::encode_image(frame)?)?;
-        set.stage(&format!("snapshot-{iteration:05}.png"), &output::png::encode_png(frame, exposure)?)?;
+        set.stage(
+            &format!("snapshot-{iteration:05}.exr"),
+            &output::exr::encode_image(frame)?,
+        )?;
+        set.stage(
+            &format!("snapshot-{iteration:05}.png"),
+            &output::png::encode_png(frame, exposure)?,
+        )?;
     }
     run.report.times.write = secs(t);
     run.report.times.total += run.report.times.write;

@@ -145,7 +145,11 @@ pub fn solve(
 
 /// Gaussian elimination: (I − diag(ρ_c) F) B_c = E_c, one LU factorisation
 /// with partial pivoting per channel.
-fn direct(system: &System, memory_budget: u64, observe: &mut dyn FnMut(usize, &[DVec3])) -> Result<Solution> {
+fn direct(
+    system: &System,
+    memory_budget: u64,
+    observe: &mut dyn FnMut(usize, &[DVec3]),
+) -> Result<Solution> {
     let n = system.len();
     let start = Instant::now();
     let bytes = (n as u64) * (n as u64) * 8;
@@ -176,7 +180,11 @@ fn direct(system: &System, memory_budget: u64, observe: &mut dyn FnMut(usize, &[
     // The residual of the solved system, relative to the largest radiosity.
     let scale = b.iter().map(|x| x.abs().max_element()).fold(0.0, f64::max);
     let residual = (0..n)
-        .map(|i| (system.emission[i] + system.reflectance[i] * h[i] - b[i]).abs().max_element())
+        .map(|i| {
+            (system.emission[i] + system.reflectance[i] * h[i] - b[i])
+                .abs()
+                .max_element()
+        })
         .fold(0.0, f64::max);
     let history = vec![Iteration {
         iteration: 1,
@@ -256,7 +264,11 @@ fn gather(
 /// and distribute it: every j receives ΔB_j += ρ_j F_ji ΔB_i. The display
 /// radiosity adds the ambient term ρ_j · R · Σ ΔB_i A_i / Σ A_i with
 /// R = 1 / (1 − ρ_mean), the area-weighted mean reflectance.
-fn shoot(system: &System, convergence: &Convergence, observe: &mut dyn FnMut(usize, &[DVec3])) -> Solution {
+fn shoot(
+    system: &System,
+    convergence: &Convergence,
+    observe: &mut dyn FnMut(usize, &[DVec3]),
+) -> Solution {
     let n = system.len();
     let (e, rho, area) = (system.emission, system.reflectance, system.area);
     let start = Instant::now();
@@ -334,7 +346,13 @@ mod tests {
         ClassicMethod::Shooting,
     ];
 
-    fn run(m: &FormFactorMatrix, rho: &[DVec3], e: &[DVec3], area: &[f64], method: ClassicMethod) -> Solution {
+    fn run(
+        m: &FormFactorMatrix,
+        rho: &[DVec3],
+        e: &[DVec3],
+        area: &[f64],
+        method: ClassicMethod,
+    ) -> Solution {
         let system = System {
             matrix: m,
             reflectance: rho,
@@ -373,21 +391,36 @@ mod tests {
         // Rows summing to at most 1, zero diagonal.
         let mut v = vec![0f32; n * n];
         for i in 0..n {
-            let w: Vec<f64> = (0..n).map(|j| if i == j { 0.0 } else { rng.random::<f64>() }).collect();
+            let w: Vec<f64> = (0..n)
+                .map(|j| if i == j { 0.0 } else { rng.random::<f64>() })
+                .collect();
             let s: f64 = w.iter().sum::<f64>() / rng.random_range(0.7..1.0);
             for j in 0..n {
                 v[i * n + j] = (w[j] / s) as f32;
             }
         }
         let m = FormFactorMatrix::from_values(n, v).unwrap();
-        let rho: Vec<DVec3> = (0..n).map(|_| DVec3::new(0.9, 0.5, rng.random_range(0.0..0.95))).collect();
-        let e: Vec<DVec3> = (0..n).map(|i| if i % 7 == 0 { DVec3::new(3.0, 2.0, 1.0) } else { DVec3::ZERO }).collect();
+        let rho: Vec<DVec3> = (0..n)
+            .map(|_| DVec3::new(0.9, 0.5, rng.random_range(0.0..0.95)))
+            .collect();
+        let e: Vec<DVec3> = (0..n)
+            .map(|i| {
+                if i % 7 == 0 {
+                    DVec3::new(3.0, 2.0, 1.0)
+                } else {
+                    DVec3::ZERO
+                }
+            })
+            .collect();
         let reference = run(&m, &rho, &e, &area, ClassicMethod::Direct);
         for method in ALL {
             let s = run(&m, &rho, &e, &area, method);
             assert!(s.converged);
             for (x, y) in s.radiosity.iter().zip(&reference.radiosity) {
-                assert!((*x - *y).abs().max_element() <= 1e-6 * y.max_element().max(1e-9), "{method:?}: {x} vs {y}");
+                assert!(
+                    (*x - *y).abs().max_element() <= 1e-6 * y.max_element().max(1e-9),
+                    "{method:?}: {x} vs {y}"
+                );
             }
             // B = E + ρ H holds for the reported irradiance.
             for i in 0..n {
@@ -413,7 +446,14 @@ mod tests {
             max_iterations: 5,
         };
         let mut seen = Vec::new();
-        let s = solve(&system, ClassicMethod::Jacobi, &conv, 1 << 30, &mut |k, _| seen.push(k)).unwrap();
+        let s = solve(
+            &system,
+            ClassicMethod::Jacobi,
+            &conv,
+            1 << 30,
+            &mut |k, _| seen.push(k),
+        )
+        .unwrap();
         assert!(!s.converged);
         assert_eq!(s.history.len(), 5);
         assert_eq!(seen, [1, 2, 3, 4, 5]);

@@ -30,7 +30,11 @@ pub struct SurfacePair {
 
 /// Aggregates `matrix` (built on `mesh`) into surface pairs, ordered by
 /// (from, to) surface index.
-pub fn surface_form_factors(scene: &Scene, mesh: &UniformMesh, matrix: &FormFactorMatrix) -> Vec<SurfacePair> {
+pub fn surface_form_factors(
+    scene: &Scene,
+    mesh: &UniformMesh,
+    matrix: &FormFactorMatrix,
+) -> Vec<SurfacePair> {
     let k = scene.surfaces.len();
     let surface_of = |e: usize| scene.patches[mesh.elements[e].patch as usize].surface as usize;
     let mut area = vec![0.0; k];
@@ -47,7 +51,13 @@ pub fn surface_form_factors(scene: &Scene, mesh: &UniformMesh, matrix: &FormFact
             }
         }
     }
-    let factor = |s: usize, t: usize| if area[s] > 0.0 { power[s][t] / area[s] } else { 0.0 };
+    let factor = |s: usize, t: usize| {
+        if area[s] > 0.0 {
+            power[s][t] / area[s]
+        } else {
+            0.0
+        }
+    };
     let mut pairs = Vec::new();
     for s in 0..k {
         let row_sum: f64 = (0..k).map(|t| factor(s, t)).sum();

@@ -70,7 +70,12 @@ fn exact_matrix(mesh: &UniformMesh) -> FormFactorMatrix {
     for i in 0..n {
         for j in 0..n {
             if mesh.elements[i].patch != mesh.elements[j].patch {
-                v[i * n + j] = form_factor_polygon_polygon(&mesh.elements[i].corners, &mesh.elements[j].corners, 1e-7).value as f32;
+                v[i * n + j] = form_factor_polygon_polygon(
+                    &mesh.elements[i].corners,
+                    &mesh.elements[j].corners,
+                    1e-7,
+                )
+                .value as f32;
             }
         }
     }
@@ -78,8 +83,16 @@ fn exact_matrix(mesh: &UniformMesh) -> FormFactorMatrix {
 }
 
 fn system_vectors(scene: &Scene, mesh: &UniformMesh) -> (Vec<DVec3>, Vec<DVec3>, Vec<f64>) {
-    let rho = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].reflectance).collect();
-    let e = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].emission).collect();
+    let rho = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].reflectance)
+        .collect();
+    let e = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].emission)
+        .collect();
     let a = mesh.elements.iter().map(|e| e.area).collect();
     (rho, e, a)
 }
@@ -108,11 +121,18 @@ fn furnace_and_enclosure_identities_hold_for_every_solver() {
             let s = solve(&system, method, &conv, 1 << 30, &mut |_, _| {}).unwrap();
             assert!(s.converged, "{method:?} ρ {rho}");
             for b in &s.radiosity {
-                assert!(((b.x - expected) / expected).abs() < 1e-4, "{method:?} ρ {rho}: B = {} vs {expected}", b.x);
+                assert!(
+                    ((b.x - expected) / expected).abs() < 1e-4,
+                    "{method:?} ρ {rho}: B = {} vs {expected}",
+                    b.x
+                );
             }
             let total: f64 = s.radiosity.iter().zip(&a).map(|(b, a)| b.x * a).sum();
             let identity = phi / (1.0 - rho);
-            assert!(((total - identity) / identity).abs() < 1e-4, "{method:?} ρ {rho}: Σ B A = {total} vs {identity}");
+            assert!(
+                ((total - identity) / identity).abs() < 1e-4,
+                "{method:?} ρ {rho}: Σ B A = {total} vs {identity}"
+            );
         }
     }
 }
@@ -138,11 +158,21 @@ fn solvers_agree_on_the_same_matrix() {
         tolerance: 1e-12,
         max_iterations: 10_000_000,
     };
-    let reference = solve(&system, ClassicMethod::Direct, &conv, 1 << 30, &mut |_, _| {}).unwrap();
+    let reference = solve(
+        &system,
+        ClassicMethod::Direct,
+        &conv,
+        1 << 30,
+        &mut |_, _| {},
+    )
+    .unwrap();
     for method in METHODS {
         let s = solve(&system, method, &conv, 1 << 30, &mut |_, _| {}).unwrap();
         for (x, y) in s.radiosity.iter().zip(&reference.radiosity) {
-            assert!((*x - *y).abs().max_element() <= 1e-6 * y.max_element(), "{method:?}: {x} vs {y}");
+            assert!(
+                (*x - *y).abs().max_element() <= 1e-6 * y.max_element(),
+                "{method:?}: {x} vs {y}"
+            );
         }
     }
 }
@@ -173,12 +203,21 @@ fn kernels_close_the_box_and_keep_reciprocity() {
             quadrature_tolerance: 1e-5,
             ..MatrixSettings::default()
         };
-        let (m, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden()).unwrap();
-        assert!((stats.mean_row_sum - 1.0).abs() < closure_tol, "{kernel:?}: mean row sum {}", stats.mean_row_sum);
+        let (m, stats) =
+            FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden()).unwrap();
+        assert!(
+            (stats.mean_row_sum - 1.0).abs() < closure_tol,
+            "{kernel:?}: mean row sum {}",
+            stats.mean_row_sum
+        );
         // Entry-wise against the exact matrix, in the metric of the total
         // transfer (sum of absolute errors per row).
         let worst = (0..n)
-            .map(|i| (0..n).map(|j| (m.get(i, j) - exact.get(i, j)).abs() as f64).sum::<f64>())
+            .map(|i| {
+                (0..n)
+                    .map(|j| (m.get(i, j) - exact.get(i, j)).abs() as f64)
+                    .sum::<f64>()
+            })
             .fold(0.0, f64::max);
         assert!(worst < entry_tol, "{kernel:?}: worst row L1 error {worst}");
         // Reciprocity A_i F_ij = A_j F_ji, summed over pairs.
@@ -190,7 +229,11 @@ fn kernels_close_the_box_and_keep_reciprocity() {
                 den += ai * m.get(i, j) as f64;
             }
         }
-        assert!(num / den < reciprocity_tol, "{kernel:?}: reciprocity error {}", num / den);
+        assert!(
+            num / den < reciprocity_tol,
+            "{kernel:?}: reciprocity error {}",
+            num / den
+        );
         eprintln!(
             "{kernel:?}: mean row sum {:.5}, worst row L1 error {worst:.5}, reciprocity error {:.5}",
             stats.mean_row_sum,

@@ -84,17 +84,33 @@ fn closed_forms_reproduce_the_catalogue_checks() {
 
 #[test]
 fn polygon_polygon_parallel_rectangles() {
-    for (a, b, c) in [(1.0, 1.0, 1.0), (1.0, 2.0, 1.0), (1.0, 1.5, 0.5), (3.0, 0.2, 0.7), (0.1, 0.1, 2.0)] {
-        let f = form_factor_polygon_polygon(&rect_xy(a, b, 0.0, true), &rect_xy(a, b, c, false), 1e-10);
+    for (a, b, c) in [
+        (1.0, 1.0, 1.0),
+        (1.0, 2.0, 1.0),
+        (1.0, 1.5, 0.5),
+        (3.0, 0.2, 0.7),
+        (0.1, 0.1, 2.0),
+    ] {
+        let f =
+            form_factor_polygon_polygon(&rect_xy(a, b, 0.0, true), &rect_xy(a, b, c, false), 1e-10);
         let exact = c11(a, b, c);
-        assert!(rel(f.value, exact) < 1e-6, "{a}×{b} at {c}: {} vs {exact}", f.value);
+        assert!(
+            rel(f.value, exact) < 1e-6,
+            "{a}×{b} at {c}: {} vs {exact}",
+            f.value
+        );
         assert!(f.error < 1e-6 * exact, "error estimate {}", f.error);
     }
 }
 
 #[test]
 fn polygon_polygon_perpendicular_rectangles() {
-    for (w, h, l) in [(1.0, 1.0, 1.0), (1.0, 2.0, 1.0), (0.3, 2.0, 1.5), (2.0, 0.5, 0.7)] {
+    for (w, h, l) in [
+        (1.0, 1.0, 1.0),
+        (1.0, 2.0, 1.0),
+        (0.3, 2.0, 1.5),
+        (2.0, 0.5, 0.7),
+    ] {
         // Surface 1 (width w) on the floor, surface 2 (height h) a wall,
         // sharing the edge along y of length l.
         let floor = vec![
@@ -111,10 +127,17 @@ fn polygon_polygon_perpendicular_rectangles() {
         ];
         let (_, n_floor) = nusselt::scene::polygon_area_normal(&floor);
         let (_, n_wall) = nusselt::scene::polygon_area_normal(&wall);
-        assert!(n_floor.z > 0.99 && n_wall.x < -0.99, "test setup faces each other");
+        assert!(
+            n_floor.z > 0.99 && n_wall.x < -0.99,
+            "test setup faces each other"
+        );
         let f = form_factor_polygon_polygon(&floor, &wall, 1e-9);
         let exact = c14(w, h, l);
-        assert!(rel(f.value, exact) < 1e-6, "w {w} h {h} l {l}: {} vs {exact}", f.value);
+        assert!(
+            rel(f.value, exact) < 1e-6,
+            "w {w} h {h} l {l}: {} vs {exact}",
+            f.value
+        );
         // Reciprocity: A_1 F_12 = A_2 F_21.
         let g = form_factor_polygon_polygon(&wall, &floor, 1e-9);
         assert!(rel(w * l * f.value, h * l * g.value) < 1e-6);
@@ -124,7 +147,10 @@ fn polygon_polygon_perpendicular_rectangles() {
 #[test]
 fn polygon_polygon_coaxial_discs_with_tessellation_extrapolated() {
     for (r1, r2, a) in [(1.0, 1.0, 1.0), (0.5, 1.5, 0.8)] {
-        let f = |m: usize| form_factor_polygon_polygon(&disc(r1, 0.0, m, true), &disc(r2, a, m, false), 1e-10).value;
+        let f = |m: usize| {
+            form_factor_polygon_polygon(&disc(r1, 0.0, m, true), &disc(r2, a, m, false), 1e-10)
+                .value
+        };
         let (f1, f2) = (f(64), f(128));
         let exact = discs(r1, r2, a);
         // The equal-area polygons converge as 1/m²: the error quarters when
@@ -142,7 +168,11 @@ fn lambert_point_to_polygon_matches_howell() {
     assert!((f - 0.167375).abs() < 1e-6);
     // The differential limit of C-11: a point under the centre of a square
     // is four corner configurations.
-    let f = form_factor_point_polygon(DVec3::new(0.5, 0.5, 0.0), DVec3::Z, &rect_xy(1.0, 1.0, 1.0, false));
+    let f = form_factor_point_polygon(
+        DVec3::new(0.5, 0.5, 0.0),
+        DVec3::Z,
+        &rect_xy(1.0, 1.0, 1.0, false),
+    );
     let corner = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &rect_xy(0.5, 0.5, 1.0, false));
     assert!(rel(f, 4.0 * corner) < 1e-12);
 }
@@ -153,15 +183,38 @@ fn closure_in_a_cube_and_reciprocity() {
     let faces: Vec<Vec<DVec3>> = vec![
         rect_xy(1.0, 1.0, 0.0, true),
         rect_xy(1.0, 1.0, 1.0, false),
-        vec![DVec3::new(0., 0., 0.), DVec3::new(0., 0., 1.), DVec3::new(1., 0., 1.), DVec3::new(1., 0., 0.)],
-        vec![DVec3::new(0., 1., 0.), DVec3::new(1., 1., 0.), DVec3::new(1., 1., 1.), DVec3::new(0., 1., 1.)],
-        vec![DVec3::new(0., 0., 0.), DVec3::new(0., 1., 0.), DVec3::new(0., 1., 1.), DVec3::new(0., 0., 1.)],
-        vec![DVec3::new(1., 0., 0.), DVec3::new(1., 0., 1.), DVec3::new(1., 1., 1.), DVec3::new(1., 1., 0.)],
+        vec![
+            DVec3::new(0., 0., 0.),
+            DVec3::new(0., 0., 1.),
+            DVec3::new(1., 0., 1.),
+            DVec3::new(1., 0., 0.),
+        ],
+        vec![
+            DVec3::new(0., 1., 0.),
+            DVec3::new(1., 1., 0.),
+            DVec3::new(1., 1., 1.),
+            DVec3::new(0., 1., 1.),
+        ],
+        vec![
+            DVec3::new(0., 0., 0.),
+            DVec3::new(0., 1., 0.),
+            DVec3::new(0., 1., 1.),
+            DVec3::new(0., 0., 1.),
+        ],
+        vec![
+            DVec3::new(1., 0., 0.),
+            DVec3::new(1., 0., 1.),
+            DVec3::new(1., 1., 1.),
+            DVec3::new(1., 1., 0.),
+        ],
     ];
     for (i, r) in faces.iter().enumerate() {
         let (_, n) = nusselt::scene::polygon_area_normal(r);
         let c = nusselt::scene::polygon_centroid(r);
-        assert!((DVec3::splat(0.5) - c).dot(n) > 0.0, "face {i} faces inward");
+        assert!(
+            (DVec3::splat(0.5) - c).dot(n) > 0.0,
+            "face {i} faces inward"
+        );
         let sum: f64 = faces
             .iter()
             .enumerate()
@@ -181,8 +234,17 @@ fn area_sampling_is_within_its_error_and_the_error_falls() {
     for (k, n) in [64, 1024, 16384].into_iter().enumerate() {
         let mut rng = stream(7, k as u64);
         let f = form_factor_area_sampling(&r, &s, n, &mut rng, |_, _| true);
-        assert!((f.value - exact).abs() < 4.0 * f.error, "n {n}: {} ± {} vs {exact}", f.value, f.error);
-        assert!(f.error < 0.5 * last, "stated error should fall with n: {} after {last}", f.error);
+        assert!(
+            (f.value - exact).abs() < 4.0 * f.error,
+            "n {n}: {} ± {} vs {exact}",
+            f.value,
+            f.error
+        );
+        assert!(
+            f.error < 0.5 * last,
+            "stated error should fall with n: {} after {last}",
+            f.error
+        );
         last = f.error;
     }
     // Reproducible for a seed.
@@ -213,7 +275,10 @@ fn kernels_stay_in_range_for_touching_and_nearly_touching_polygons() {
                 1 => form_factor_polygon_polygon(&r, &src, 1e-4).value,
                 _ => form_factor_area_sampling(&r, &src, 64, &mut rng, |_, _| true).value,
             };
-            assert!(f.is_finite() && (0.0..=1.0).contains(&f), "case {case} kernel {kernel}: {f}");
+            assert!(
+                f.is_finite() && (0.0..=1.0).contains(&f),
+                "case {case} kernel {kernel}: {f}"
+            );
         }
     }
 }

@@ -220,18 +220,42 @@ fn every_method_and_snapshots_on_the_goral_box() {
     for method in ["direct", "jacobi", "gauss-seidel", "shooting"] {
         let out = nusselt(
             &[
-                "solve", &scene, "-q", "-o", method, "--method", method, "--element-size", "0.2", "--width", "16",
-                "--height", "16", "--spp", "1", "--snapshots", "1,2",
+                "solve",
+                &scene,
+                "-q",
+                "-o",
+                method,
+                "--method",
+                method,
+                "--element-size",
+                "0.2",
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--spp",
+                "1",
+                "--snapshots",
+                "1,2",
             ],
             dir.path(),
         );
-        assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let res = dir.path().join(method);
         let r = read_report(&res);
         assert_eq!(r.method, method);
         assert!(r.convergence.converged, "{method}");
         assert!(!r.convergence.history.is_empty());
-        for f in ["snapshot-00001.png", "snapshot-00001.exr", "snapshot-00002.png", "snapshot-00002.exr"] {
+        for f in [
+            "snapshot-00001.png",
+            "snapshot-00001.exr",
+            "snapshot-00002.png",
+            "snapshot-00002.exr",
+        ] {
             assert!(res.join(f).exists(), "{method}: {f}");
         }
         totals.push(r.power.radiated);
@@ -239,7 +263,10 @@ fn every_method_and_snapshots_on_the_goral_box() {
     // All methods solve the same system: the radiated power agrees.
     for t in &totals {
         for c in 0..3 {
-            assert!((t[c] - totals[0][c]).abs() < 1e-4 * totals[0][c], "{totals:?}");
+            assert!(
+                (t[c] - totals[0][c]).abs() < 1e-4 * totals[0][c],
+                "{totals:?}"
+            );
         }
     }
 }
@@ -248,17 +275,48 @@ fn every_method_and_snapshots_on_the_goral_box() {
 fn render_command_reproduces_the_solve_view() {
     let dir = tempfile::tempdir().unwrap();
     let scene = repo("scenes/goral-box.gltf");
-    let args = ["solve", &scene, "-q", "-o", "res", "--element-size", "0.25", "--width", "20", "--height", "12", "--spp", "4"];
+    let args = [
+        "solve",
+        &scene,
+        "-q",
+        "-o",
+        "res",
+        "--element-size",
+        "0.25",
+        "--width",
+        "20",
+        "--height",
+        "12",
+        "--spp",
+        "4",
+    ];
     assert!(nusselt(&args, dir.path()).status.success());
     let out = nusselt(
-        &["render", "res/solution.exr", "-o", "again.exr", "--png", "again.png", "--spp", "4", "-q"],
+        &[
+            "render",
+            "res/solution.exr",
+            "-o",
+            "again.exr",
+            "--png",
+            "again.png",
+            "--spp",
+            "4",
+            "-q",
+        ],
         dir.path(),
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let a = output::exr::read_image(&dir.path().join("res/render.exr")).unwrap();
     let b = output::exr::read_image(&dir.path().join("again.exr")).unwrap();
     assert_eq!(a, b);
-    assert_eq!(fs::read(dir.path().join("res/render.png")).unwrap(), fs::read(dir.path().join("again.png")).unwrap());
+    assert_eq!(
+        fs::read(dir.path().join("res/render.png")).unwrap(),
+        fs::read(dir.path().join("again.png")).unwrap()
+    );
     // A missing solution is a clean error.
     let out = nusselt(&["render", "nope/solution.exr", "-o", "x.exr"], dir.path());
     crate::util::assert_user_error(&out, "nope/solution.exr");
@@ -267,8 +325,15 @@ fn render_command_reproduces_the_solve_view() {
 #[test]
 fn formfactors_command_matches_closed_forms() {
     let dir = tempfile::tempdir().unwrap();
-    let out = nusselt(&["formfactors", &repo("scenes/two-squares.gltf"), "-q"], dir.path());
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = nusselt(
+        &["formfactors", &repo("scenes/two-squares.gltf"), "-q"],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let csv = String::from_utf8(out.stdout).unwrap();
     let mut lines = csv.lines();
     assert!(lines.next().unwrap().starts_with("from,to,form_factor"));
@@ -280,8 +345,21 @@ fn formfactors_command_matches_closed_forms() {
     // Area sampling has unbounded variance where faces touch (1/r² at the
     // shared edges): its rows close only to about 10 % here.
     for (method, tol) in [("analytic", 1e-4), ("hemicube", 1e-3), ("sampling", 0.15)] {
-        let out = nusselt(&["formfactors", &repo("scenes/goral-box.gltf"), "--method", method, "-q"], dir.path());
-        assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
+        let out = nusselt(
+            &[
+                "formfactors",
+                &repo("scenes/goral-box.gltf"),
+                "--method",
+                method,
+                "-q",
+            ],
+            dir.path(),
+        );
+        assert!(
+            out.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let csv = String::from_utf8(out.stdout).unwrap();
         for line in csv.lines().skip(1) {
             let cols: Vec<&str> = line.split(',').collect();

@@ -53,8 +53,16 @@ fn child(scene_path: &str, fraction: f64, method: &str) -> anyhow::Result<()> {
     };
     let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden())?;
     let ff_time = t.elapsed().as_secs_f64();
-    let rho: Vec<DVec3> = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].reflectance).collect();
-    let e: Vec<DVec3> = mesh.elements.iter().map(|e| scene.patches[e.patch as usize].emission).collect();
+    let rho: Vec<DVec3> = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].reflectance)
+        .collect();
+    let e: Vec<DVec3> = mesh
+        .elements
+        .iter()
+        .map(|e| scene.patches[e.patch as usize].emission)
+        .collect();
     let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
     let system = System {
         matrix: &matrix,
@@ -86,18 +94,33 @@ fn main() -> anyhow::Result<()> {
     if args.len() == 5 && args[1] == "--child" {
         return child(&args[2], args[3].parse()?, &args[4]);
     }
-    let scene = args.get(1).cloned().unwrap_or_else(|| "scenes/cornell-box.gltf".into());
-    let fractions = args.get(2).cloned().unwrap_or_else(|| "0.1,0.05,0.033,0.025".into());
-    println!("Scene {scene}; point-polygon kernel, 4 visibility rays; tolerance 1e-6 (gathering: relative change per sweep; shooting: unshot/emitted power).\n");
-    println!("| element size / diagonal | elements | method | form factors (s) | solve (s) | iterations | converged | peak memory (MiB) |");
+    let scene = args
+        .get(1)
+        .cloned()
+        .unwrap_or_else(|| "scenes/cornell-box.gltf".into());
+    let fractions = args
+        .get(2)
+        .cloned()
+        .unwrap_or_else(|| "0.1,0.05,0.033,0.025".into());
+    println!(
+        "Scene {scene}; point-polygon kernel, 4 visibility rays; tolerance 1e-6 (gathering: relative change per sweep; shooting: unshot/emitted power).\n"
+    );
+    println!(
+        "| element size / diagonal | elements | method | form factors (s) | solve (s) | iterations | converged | peak memory (MiB) |"
+    );
     println!("|---:|---:|---|---:|---:|---:|---|---:|");
     let exe = std::env::current_exe()?;
     for fraction in fractions.split(',') {
         for (method, _) in METHODS {
-            let out = Command::new(&exe).args(["--child", &scene, fraction, method]).output()?;
+            let out = Command::new(&exe)
+                .args(["--child", &scene, fraction, method])
+                .output()?;
             print!("{}", String::from_utf8_lossy(&out.stdout));
             if !out.status.success() {
-                eprintln!("{fraction} {method}: {}", String::from_utf8_lossy(&out.stderr).trim());
+                eprintln!(
+                    "{fraction} {method}: {}",
+                    String::from_utf8_lossy(&out.stderr).trim()
+                );
             }
         }
     }
