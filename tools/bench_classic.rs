@@ -4,7 +4,7 @@
 //!
 //! Run: `cargo run --release --example bench-classic [-- SCENE [FRACTIONS]]`
 //! where FRACTIONS is a comma list of element sizes as fractions of the
-//! scene diagonal (default 0.1,0.05,0.033,0.025). Each (resolution, method)
+//! scene diagonal (default 0.1,0.05,0.033). Each (resolution, method)
 //! runs in a child process of its own so that its peak resident memory
 //! (Linux `VmHWM`) is its own. Prints a Markdown table.
 
@@ -101,7 +101,7 @@ fn main() -> anyhow::Result<()> {
     let fractions = args
         .get(2)
         .cloned()
-        .unwrap_or_else(|| "0.1,0.05,0.033,0.025".into());
+        .unwrap_or_else(|| "0.1,0.05,0.033".into());
     println!(
         "Scene {scene}; point-polygon kernel, 4 visibility rays; tolerance 1e-6 (gathering: relative change per sweep; shooting: unshot/emitted power).\n"
     );
