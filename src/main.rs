@@ -415,7 +415,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(png) = &args.png {
         let exposure = report
             .map(|r| r.exposure)
-            .unwrap_or_else(|| pipeline::display_exposure(&mesh));
+            .unwrap_or_else(|| pipeline::frame_exposure(&frame));
         nusselt::output::write_atomic(png, &nusselt::output::png::encode_png(&frame, exposure)?)?;
     }
     Ok(())

@@ -233,7 +233,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
         "width": view.width,
         "height": view.height,
     });
-    report.exposure = display_exposure(&out);
+    report.exposure = frame_exposure(&frame);
     report.view = Some(view);
     report.times.total = secs(start);
     Ok(SolveRun {
@@ -244,14 +244,12 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     })
 }
 
-/// The display exposure of a solution: chosen from the radiance of its
-/// vertices, so that the bake and every render of it share one exposure.
-pub fn display_exposure(mesh: &OutputMesh) -> f32 {
-    output::png::auto_exposure(
-        mesh.radiosity
-            .iter()
-            .map(|b| output::png::luminance((*b / std::f32::consts::PI).to_array())),
-    )
+/// The display exposure of a run, chosen from its main render's pixels (a
+/// small bright emitter clips, the rest is well exposed), and then shared by
+/// `render.png`, the snapshots, the bake's `COLOR_0` and later
+/// `nusselt render --png` of the same solution.
+pub fn frame_exposure(frame: &Frame) -> f32 {
+    output::png::auto_exposure(frame.pixels.iter().map(|p| output::png::luminance(*p)))
 }
 
 /// Writes the five outputs of the contract, and any snapshots, into `dir`
