@@ -28,6 +28,10 @@ pub enum Error {
     /// An input file other than a scene (an image, a solution) is unreadable.
     #[error("cannot read {path}: {message}")]
     Input { path: PathBuf, message: String },
+    /// An input file was read but its content cannot be used as asked
+    /// (e.g. images of different sizes, a non-finite pixel).
+    #[error("{path}: {message}")]
+    Data { path: PathBuf, message: String },
     /// Data could not be turned into the bytes of an output format (before
     /// any file is touched), e.g. a mesh whose arrays disagree in length.
     #[error("cannot encode {what}: {message}")]
@@ -58,6 +62,14 @@ impl Error {
     pub fn encode(what: &'static str, cause: impl std::fmt::Display) -> Self {
         Error::Encode {
             what,
+            message: cause.to_string(),
+        }
+    }
+
+    /// A data error for `path` from any displayable cause.
+    pub fn data(path: impl Into<PathBuf>, cause: impl std::fmt::Display) -> Self {
+        Error::Data {
+            path: path.into(),
             message: cause.to_string(),
         }
     }

@@ -10,6 +10,8 @@
 // numeric kernels here.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+pub mod chart;
+pub mod compare;
 pub mod error;
 pub mod formfactor;
 pub mod frame;

@@ -18,6 +18,7 @@ use glam::DVec3;
 
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::output::OutputSet;
 use nusselt::pipeline::{self, SolveSettings};
 use nusselt::progress::Progress;
 use nusselt::render::RenderSettings;
@@ -44,6 +45,36 @@ enum Command {
     Render(RenderArgs),
     /// Form factors between the scene's surfaces (glTF nodes), as CSV on stdout.
     Formfactors(FormFactorArgs),
+    /// Compare an image with a reference: metrics as JSON on stdout, error images with -o.
+    Compare(CompareArgs),
+    /// Convergence charts (SVG and PNG) from the report.json of one or more solves.
+    Chart(ChartArgs),
+}
+
+#[derive(Args, Debug)]
+struct CompareArgs {
+    /// The image to judge (OpenEXR, RGB).
+    test: PathBuf,
+    /// The reference image (OpenEXR, RGB); a <stem>.noise.exr beside it is
+    /// read as its per-pixel standard error.
+    reference: PathBuf,
+    /// Write error.exr, error.png and metrics.json into this folder
+    /// (without it, only the metrics are printed).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Relative error at the top of error.png's colour scale (0.2 = 20 %).
+    #[arg(long, default_value_t = nusselt::compare::DEFAULT_MAX_ERROR)]
+    max_error: f64,
+}
+
+#[derive(Args, Debug)]
+struct ChartArgs {
+    /// report.json files written by `nusselt solve`.
+    #[arg(required = true)]
+    reports: Vec<PathBuf>,
+    /// Output folder for residual-iterations.svg/.png and residual-time.svg/.png.
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -466,6 +497,52 @@ fn run_formfactors(args: FormFactorArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_compare(args: CompareArgs) -> Result<()> {
+    if !(args.max_error > 0.0 && args.max_error.is_finite()) {
+        bail!("--max-error must be a positive fraction (0.2 = 20 %)");
+    }
+    let comparison = nusselt::compare::compare_files(&args.test, &args.reference)?;
+    let json = nusselt::output::write_json(&comparison.metrics)?;
+    if let Some(dir) = &args.output {
+        let images = nusselt::compare::error_images(
+            &comparison.test,
+            &comparison.reference,
+            args.max_error,
+        )?;
+        let mut set = OutputSet::create(dir)?;
+        set.stage("error.exr", &images.exr)?;
+        set.stage("error.png", &images.png)?;
+        set.stage("metrics.json", &json)?;
+        set.commit()?;
+    }
+    print!("{}", String::from_utf8_lossy(&json));
+    Ok(())
+}
+
+fn run_chart(args: ChartArgs) -> Result<()> {
+    let runs = args
+        .reports
+        .iter()
+        .map(|p| nusselt::chart::read_convergence(p))
+        .collect::<nusselt::Result<Vec<_>>>()?;
+    let charts = nusselt::chart::convergence_charts(&runs)?;
+    let mut set = OutputSet::create(&args.output)?;
+    for chart in &charts {
+        set.stage(&format!("{}.svg", chart.stem), chart.images.svg.as_bytes())?;
+        set.stage(&format!("{}.png", chart.stem), &chart.images.png)?;
+    }
+    set.commit()?;
+    for chart in &charts {
+        if chart.images.skipped_points > 0 {
+            eprintln!(
+                "warning: {}: {} points with a zero or negative value were left off the log axes",
+                chart.stem, chart.images.skipped_points
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Quotes a CSV field when it needs it.
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) {
@@ -497,6 +574,8 @@ fn main() -> ExitCode {
         Command::Solve(args) => run_solve(args),
         Command::Render(args) => run_render(args),
         Command::Formfactors(args) => run_formfactors(args),
+        Command::Compare(args) => run_compare(args),
+        Command::Chart(args) => run_chart(args),
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,

@@ -1,8 +1,10 @@
 //! Integration tests, one module per topic.
 
+mod chart;
 mod classic;
 mod cli;
 mod closed_forms;
+mod compare;
 mod end_to_end;
 mod fuzz_corpus;
 mod loader;

@@ -105,3 +105,20 @@ pub fn encode_png(frame: &Frame, exposure: f32) -> Result<Vec<u8>> {
         .map_err(|e| Error::encode("the PNG image", e))?;
     Ok(out)
 }
+
+/// Encodes ready-made 8-bit sRGB pixels (`width × height × 3` bytes,
+/// row-major, row 0 at the top) as a PNG: for charts and false-colour maps,
+/// which are drawn in display colours already.
+pub fn encode_rgb8(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>> {
+    if width == 0 || height == 0 || rgb.len() != width as usize * height as usize * 3 {
+        return Err(Error::encode(
+            "the PNG image",
+            format!("{} bytes for a {width}×{height} RGB image", rgb.len()),
+        ));
+    }
+    let mut out = Vec::new();
+    PngEncoder::new(&mut out)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::encode("the PNG image", e))?;
+    Ok(out)
+}
