@@ -22,6 +22,7 @@ pub mod mesh;
 pub mod output;
 pub mod pipeline;
 pub mod progress;
+pub mod reference;
 pub mod render;
 pub mod report;
 pub mod sampling;

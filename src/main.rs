@@ -21,6 +21,7 @@ use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::output::OutputSet;
 use nusselt::pipeline::{self, SolveSettings};
 use nusselt::progress::Progress;
+use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::RenderSettings;
 use nusselt::report::Report;
 use nusselt::solve::{ClassicMethod, Convergence};
@@ -49,6 +50,9 @@ enum Command {
     Compare(CompareArgs),
     /// Convergence charts (SVG and PNG) from the report.json of one or more solves.
     Chart(ChartArgs),
+    /// Path-trace an independent reference image of the same view, with a
+    /// per-pixel noise image and a JSON sidecar.
+    Reference(ReferenceArgs),
 }
 
 #[derive(Args, Debug)]
@@ -110,7 +114,8 @@ struct ViewArgs {
     /// Vertical field of view in degrees.
     #[arg(long)]
     fov: Option<f64>,
-    /// Samples per pixel (stratified; rounded up to a square).
+    /// Samples per pixel (`solve`, `render`: stratified, rounded up to a
+    /// square; `reference`: independent paths, at least 2).
     #[arg(long, default_value_t = 16)]
     spp: u32,
 }
@@ -295,6 +300,30 @@ struct RenderArgs {
     /// Also write a tone-mapped PNG here.
     #[arg(long)]
     png: Option<PathBuf>,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+#[derive(Args, Debug)]
+struct ReferenceArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// The image to write (.exr); `<stem>.noise.exr` and `<stem>.json` go
+    /// beside it.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write a tone-mapped PNG here (auto exposure).
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Largest number of reflections per path (default: unlimited, ended by
+    /// Russian roulette; never more than 10,000).
+    #[arg(long)]
+    max_bounces: Option<u32>,
+    /// Reflectances at or above this are clamped to it (as in `solve`).
+    #[arg(long, default_value_t = 0.999)]
+    max_reflectance: f64,
     #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
@@ -543,6 +572,74 @@ fn run_chart(args: ChartArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_reference(args: ReferenceArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    if !(args.max_reflectance > 0.0 && args.max_reflectance < 1.0) {
+        bail!("--max-reflectance must be in (0, 1)");
+    }
+    if args.view.spp < 2 {
+        bail!("--spp must be at least 2 for the reference's noise estimate");
+    }
+    let options = LoadOptions {
+        max_reflectance: args.max_reflectance,
+    };
+    let scene = load_scene(&args.scene, &options)?;
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &args.view.overrides())?;
+    let settings = ReferenceSettings {
+        samples_per_pixel: args.view.spp,
+        seed: args.common.seed,
+        max_bounces: args.max_bounces,
+    };
+    let mut result = reference::render_reference(&scene, &view, &settings, &progress)
+        .with_context(|| format!("path tracing {}", args.scene.display()))?;
+    result.stats.scene = args.scene.display().to_string();
+    let image = nusselt::output::exr::encode_image(&result.image)?;
+    let noise = nusselt::output::exr::encode_image(&result.noise)?;
+    let stats = nusselt::output::write_json(&result.stats)?;
+    let png = match &args.png {
+        Some(path) => {
+            let exposure = nusselt::output::png::auto_exposure(
+                result
+                    .image
+                    .pixels
+                    .iter()
+                    .map(|&p| nusselt::output::png::luminance(p)),
+            );
+            Some((
+                path,
+                nusselt::output::png::encode_png(&result.image, exposure)?,
+            ))
+        }
+        None => None,
+    };
+    // The image last: when it is there, its sidecars are complete.
+    nusselt::output::write_atomic(&reference::noise_path(&args.output), &noise)?;
+    nusselt::output::write_atomic(&reference::stats_path(&args.output), &stats)?;
+    nusselt::output::write_atomic(&args.output, &image)?;
+    if let Some((path, bytes)) = png {
+        nusselt::output::write_atomic(path, &bytes)?;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !args.common.quiet {
+        let s = &result.stats;
+        println!(
+            "{}: {} × {} at {} spp, {:.2} s ({:.3} M samples/s), relative noise {:.2} % → {}",
+            args.scene.display(),
+            s.width,
+            s.height,
+            s.spp,
+            s.time_seconds,
+            s.samples_per_second / 1e6,
+            100.0 * s.relative_noise,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
 /// Quotes a CSV field when it needs it.
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) {
@@ -576,6 +673,7 @@ fn main() -> ExitCode {
         Command::Formfactors(args) => run_formfactors(args),
         Command::Compare(args) => run_compare(args),
         Command::Chart(args) => run_chart(args),
+        Command::Reference(args) => run_reference(args),
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,

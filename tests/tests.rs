@@ -9,5 +9,6 @@ mod end_to_end;
 mod fuzz_corpus;
 mod loader;
 mod output;
+mod reference;
 mod scenes;
 mod util;
