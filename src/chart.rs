@@ -545,3 +545,54 @@ fn draw_scale_bar<DB: DrawingBackend>(
     .map_err(fail)?;
     Ok(())
 }
+
+/// Height of the label strip above each contact-sheet tile.
+pub const TILE_LABEL_HEIGHT: u32 = 18;
+
+/// A contact sheet: `tiles` (label, `width` × `height` 8-bit RGB pixels,
+/// row 0 at the top) laid out `columns` to a row, each under its label, on
+/// a white canvas, as PNG.
+pub fn contact_sheet(tiles: &[(String, Vec<[u8; 3]>)], width: u32, height: u32, columns: usize) -> Result<Vec<u8>> {
+    const SHEET: &str = "the contact sheet";
+    let n = width as usize * height as usize;
+    if tiles.is_empty() || columns == 0 || n == 0 {
+        return Err(Error::encode(SHEET, "nothing to lay out"));
+    }
+    if let Some((label, _)) = tiles.iter().find(|(_, px)| px.len() != n) {
+        return Err(Error::encode(SHEET, format!("tile '{label}' is not {width}×{height}")));
+    }
+    let columns = columns.min(tiles.len());
+    let rows = tiles.len().div_ceil(columns);
+    let gap = 4u32;
+    let cell_w = width + gap;
+    let cell_h = height + TILE_LABEL_HEIGHT + gap;
+    let (canvas_w, canvas_h) = (columns as u32 * cell_w + gap, rows as u32 * cell_h + gap);
+    let mut rgb: Vec<u8> = BACKGROUND
+        .iter()
+        .copied()
+        .cycle()
+        .take(canvas_w as usize * canvas_h as usize * 3)
+        .collect();
+    for (k, (_, pixels)) in tiles.iter().enumerate() {
+        let x0 = gap + (k % columns) as u32 * cell_w;
+        let y0 = gap + (k / columns) as u32 * cell_h + TILE_LABEL_HEIGHT;
+        for (row, line) in pixels.chunks_exact(width as usize).enumerate() {
+            let at = ((y0 as usize + row) * canvas_w as usize + x0 as usize) * 3;
+            for (col, p) in line.iter().enumerate() {
+                rgb[at + 3 * col..at + 3 * col + 3].copy_from_slice(p);
+            }
+        }
+    }
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (canvas_w, canvas_h)).into_drawing_area();
+        let style = ("sans-serif", 13).into_font().color(&BLACK);
+        for (k, (label, _)) in tiles.iter().enumerate() {
+            let x0 = gap + (k % columns) as u32 * cell_w;
+            let y0 = gap + (k / columns) as u32 * cell_h;
+            root.draw(&Text::new(label.clone(), (x0 as i32, y0 as i32 + 2), style.clone()))
+                .map_err(|e| Error::encode(SHEET, e))?;
+        }
+        root.present().map_err(|e| Error::encode(SHEET, e))?;
+    }
+    crate::output::png::encode_rgb8(canvas_w, canvas_h, &rgb)
+}

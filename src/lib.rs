@@ -28,6 +28,7 @@ pub mod report;
 pub mod sampling;
 pub mod scene;
 pub mod solve;
+pub mod study;
 pub mod surfaces;
 pub mod uniform;
 pub mod view;

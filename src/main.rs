@@ -53,6 +53,35 @@ enum Command {
     /// Path-trace an independent reference image of the same view, with a
     /// per-pixel noise image and a JSON sidecar.
     Reference(ReferenceArgs),
+    /// Sweep methods and settings against a path-traced reference: results.csv, charts, contact sheet.
+    Study(StudyArgs),
+}
+
+#[derive(Args, Debug)]
+struct StudyArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// Output folder (the reference is cached here).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The sweep as JSON (see README); default: every method at a few settings.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Use this reference image (and the <stem>.noise.exr beside it, if any)
+    /// instead of path tracing one.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Image width (overrides the config).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (overrides the config).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Reference samples per pixel (overrides the config).
+    #[arg(long)]
+    reference_spp: Option<u32>,
+    #[command(flatten)]
+    common: Common,
 }
 
 #[derive(Args, Debug)]
@@ -640,6 +669,42 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_study(args: StudyArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    let mut config: nusselt::study::StudyConfig = match &args.config {
+        Some(path) => {
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+            serde_json::from_slice(&bytes).with_context(|| format!("{}: not a study configuration", path.display()))?
+        }
+        None => Default::default(),
+    };
+    config.width = args.width.unwrap_or(config.width);
+    config.height = args.height.unwrap_or(config.height);
+    config.reference_spp = args.reference_spp.unwrap_or(config.reference_spp);
+    config.seed = args.common.seed;
+    let scene = load_scene(&args.scene, &LoadOptions::default())?;
+    let given = match &args.reference {
+        Some(path) => {
+            let image = nusselt::output::exr::read_image(path)?;
+            let noise_path = nusselt::compare::noise_path(path);
+            let noise = noise_path
+                .exists()
+                .then(|| nusselt::output::exr::read_image(&noise_path))
+                .transpose()?;
+            Some((image, noise))
+        }
+        None => None,
+    };
+    let name = args.scene.display().to_string();
+    let result = nusselt::study::run_study(&scene, &name, &config, given, &args.output, &progress)?;
+    nusselt::study::write_study(&args.output, &result)?;
+    if !args.common.quiet {
+        println!("{} runs → {}", result.rows.len(), args.output.display());
+    }
+    Ok(())
+}
+
 /// Quotes a CSV field when it needs it.
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) {
@@ -674,6 +739,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => run_compare(args),
         Command::Chart(args) => run_chart(args),
         Command::Reference(args) => run_reference(args),
+        Command::Study(args) => run_study(args),
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
