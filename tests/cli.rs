@@ -153,7 +153,18 @@ fn list(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
 fn matrix_over_the_memory_budget_is_refused_with_its_size() {
     let dir = tempfile::tempdir().unwrap();
     let p = write(dir.path(), "box.gltf", &gltf_json(&lit_box()));
-    let out = nusselt(&["solve", &p, "-q", "--element-size", "0.01", "--memory-budget", "0.01"], dir.path());
+    let out = nusselt(
+        &[
+            "solve",
+            &p,
+            "-q",
+            "--element-size",
+            "0.01",
+            "--memory-budget",
+            "0.01",
+        ],
+        dir.path(),
+    );
     // 60,000 elements: 13.41 GiB of f32 matrix.
     assert_user_error(&out, "60000 elements needs 13.41 GiB");
     assert!(!dir.path().join("out").exists(), "nothing written");
