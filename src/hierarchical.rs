@@ -32,7 +32,10 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::hierarchy::{ElementId, Hierarchy};
-use crate::links::{Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other};
+use crate::links::{
+    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other,
+    split_at_any_visibility,
+};
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
 use crate::scene::{Scene, Shape};
@@ -329,9 +332,11 @@ impl Solver<'_> {
                 .par_iter()
                 .with_min_len(8)
                 .map(|&(r, s)| {
-                    let (link, cast) = evaluate_link(scene, elements, r, s, bvh, rays, seed);
-                    let rho = scene.patches[elements[r.index()].patch as usize].reflectance;
-                    let d = decide(t, &link, &elements[r.index()], &elements[s.index()], rho);
+                    let (re, se) = (&elements[r.index()], &elements[s.index()]);
+                    let rho = scene.patches[re.patch as usize].reflectance;
+                    let skip = |l: &Link| split_at_any_visibility(t, l, re, se, rho);
+                    let (link, cast) = evaluate_link(scene, elements, r, s, bvh, rays, seed, skip);
+                    let d = decide(t, &link, re, se, rho);
                     (link, cast, d)
                 })
                 .collect();
@@ -340,7 +345,26 @@ impl Solver<'_> {
                 self.rays += cast;
                 if self.apply(r, link, decision, &mut next) {
                     splits += 1;
-                } else if link.coupling() > 0.0 {
+                    continue;
+                }
+                let mut link = link;
+                if decision != Decision::Accept && cast == 0 {
+                    // The budget refused a split the oracle decided without
+                    // visibility rays: the kept link needs its visibility.
+                    let (l, c) = evaluate_link(
+                        self.scene,
+                        &self.hierarchy.elements,
+                        r,
+                        link.source,
+                        self.bvh,
+                        rays,
+                        seed,
+                        |_| false,
+                    );
+                    link = l;
+                    self.rays += c;
+                }
+                if link.coupling() > 0.0 {
                     self.links[r.index()].push(link);
                 } else {
                     // Fully occluded or facing away: no light, no link.
@@ -405,22 +429,24 @@ impl Solver<'_> {
     }
 
     /// Splits leaves whose radiosity differs from a sibling's by more than
-    /// the gradient tolerance, pushing their own links down to the
-    /// children. Returns the leaves split.
+    /// `tol` (W/m²), pushing down to the children those of their own links
+    /// that can explain such a gradient: links whose brightness-weighted
+    /// variation ρ_r B_s (F_err + V_err F) exceeds `tol / 4`. The other links
+    /// keep feeding the split element as a whole. A leaf without such a
+    /// link is not split (its children would all be alike). Returns the
+    /// leaves split.
     fn refine_gradients(&mut self, tol: f64) -> u64 {
         if !(tol > 0.0) {
             return 0;
         }
         let h = &self.hierarchy;
+        let rays = self.thresholds.rays.max(1) as f64;
         let mut marked = Vec::new();
-        for (i, e) in h.elements.iter().enumerate() {
+        for e in &h.elements {
             let Some(kids) = e.children() else { continue };
             for &k in &kids {
                 let leaf = h.get(k);
-                if !leaf.is_leaf()
-                    || self.links[k.index()].is_empty()
-                    || !(leaf.area > self.thresholds.min_area)
-                {
+                if !leaf.is_leaf() || !(leaf.area > self.thresholds.min_area) {
                     continue;
                 }
                 let differs = kids
@@ -430,22 +456,29 @@ impl Solver<'_> {
                     marked.push(k);
                 }
             }
-            let _ = i;
         }
         let mut pending = Vec::new();
         let mut split = 0;
         for k in marked {
+            let rho = self.scene.patches[self.hierarchy.get(k).patch as usize].reflectance;
             let own = std::mem::take(&mut self.links[k.index()]);
-            let extra = 3 * own.len() as u64;
-            if self.over_budget(extra) {
-                self.budget_reached = true;
-                self.links[k.index()] = own;
+            let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
+                let b = (rho * self.hierarchy.get(l.source).radiosity).max_element();
+                let v = l.visibility as f64;
+                let v_err = if v > 0.0 && v < 1.0 { 1.0 } else { 1.0 / rays };
+                b * (l.error as f64 + v_err * l.form_factor as f64) > 0.25 * tol
+            });
+            self.links[k.index()] = keep;
+            let extra = 3 * down.len() as u64;
+            if down.is_empty() || self.over_budget(extra) {
+                self.budget_reached |= !down.is_empty();
+                self.links[k.index()].extend(down);
                 continue;
             }
             split += 1;
             self.n_links += extra;
             for child in self.hierarchy.split(k) {
-                for l in &own {
+                for l in &down {
                     pending.push((child, l.source));
                 }
             }

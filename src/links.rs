@@ -75,8 +75,11 @@ pub fn faces_each_other(
     front(source, receiver[0], n_r) && front(receiver, source[0], n_s)
 }
 
-/// Evaluates the link (receiver `r_id`, source `s_id`): form factor, its
-/// error, and visibility by `rays` rays. Returns the link and the rays cast.
+/// Evaluates the link (receiver `r_id`, source `s_id`): its form factor
+/// and error, then its visibility by `rays` rays, unless `skip_visibility`
+/// says the unoccluded link already decides (its visibility stays 0).
+/// Returns the link and the rays cast.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_link(
     scene: &Scene,
     elements: &[Element],
@@ -85,6 +88,7 @@ pub fn evaluate_link(
     bvh: &TriangleBvh,
     rays: usize,
     seed: u64,
+    skip_visibility: impl Fn(&Link) -> bool,
 ) -> (Link, u64) {
     let r = &elements[r_id.index()];
     let s = &elements[s_id.index()];
@@ -105,7 +109,7 @@ pub fn evaluate_link(
         visibility: 0.0,
         error: (hi - lo).max(0.0) as f32,
     };
-    if f <= 0.0 {
+    if f <= 0.0 || skip_visibility(&link) {
         return (link, 0);
     }
     let rays = rays.max(1);
@@ -145,7 +149,7 @@ pub enum Decision {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Oracle {
-    /// [HSA91]: refine while the form factor exceeds `ff_eps`.
+    /// [HSA91]: refine while the unoccluded form factor exceeds `ff_eps`.
     Ff,
     /// Brightness-weighted (SPLASH-2): ρ_r B_s (V F_err + V_err F + V_err F_err)
     /// against `bf_eps` × the mean emitted exitance.
@@ -195,7 +199,7 @@ pub fn link_error(
     let v = link.visibility as f64;
     let rho_b = (receiver_reflectance * source_radiosity).max_element();
     match t.oracle {
-        Oracle::Ff => (if v > 0.0 { f } else { 0.0 }, t.ff_eps),
+        Oracle::Ff => (f, t.ff_eps),
         Oracle::Bf => {
             let f_err = link.error as f64;
             let v_err = if v > 0.0 && v < 1.0 {
@@ -207,6 +211,24 @@ pub fn link_error(
         }
         Oracle::Power => (receiver_area * f * v * rho_b, t.power_eps),
     }
+}
+
+/// True when `link`, whatever its visibility, will be split: the oracles'
+/// errors are smallest for a fully occluded link (V = 0), so when even that
+/// is rejected, the link needs no visibility rays ([`decide`] at V = 0 is
+/// then the decision at any V).
+pub fn split_at_any_visibility(
+    t: &Thresholds,
+    link: &Link,
+    receiver: &Element,
+    source: &Element,
+    receiver_reflectance: DVec3,
+) -> bool {
+    let occluded = Link {
+        visibility: 0.0,
+        ..*link
+    };
+    decide(t, &occluded, receiver, source, receiver_reflectance) != Decision::Accept
 }
 
 /// The decision for a link: accept it when its error is within the

@@ -41,7 +41,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Solve a scene and write solution.exr, baked.gltf, render.exr/png and report.json.
-    Solve(SolveArgs),
+    Solve(Box<SolveArgs>),
     /// Render a new view of an earlier solution without solving again.
     Render(RenderArgs),
     /// Form factors between the scene's surfaces (glTF nodes), as CSV on stdout.
@@ -630,7 +630,7 @@ fn main() -> ExitCode {
     }));
     let cli = Cli::parse();
     let result = std::panic::catch_unwind(|| match cli.command {
-        Command::Solve(args) => run_solve(args),
+        Command::Solve(args) => run_solve(*args),
         Command::Render(args) => run_render(args),
         Command::Formfactors(args) => run_formfactors(args),
     });
