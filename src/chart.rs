@@ -552,14 +552,22 @@ pub const TILE_LABEL_HEIGHT: u32 = 18;
 /// A contact sheet: `tiles` (label, `width` × `height` 8-bit RGB pixels,
 /// row 0 at the top) laid out `columns` to a row, each under its label, on
 /// a white canvas, as PNG.
-pub fn contact_sheet(tiles: &[(String, Vec<[u8; 3]>)], width: u32, height: u32, columns: usize) -> Result<Vec<u8>> {
+pub fn contact_sheet(
+    tiles: &[(String, Vec<[u8; 3]>)],
+    width: u32,
+    height: u32,
+    columns: usize,
+) -> Result<Vec<u8>> {
     const SHEET: &str = "the contact sheet";
     let n = width as usize * height as usize;
     if tiles.is_empty() || columns == 0 || n == 0 {
         return Err(Error::encode(SHEET, "nothing to lay out"));
     }
     if let Some((label, _)) = tiles.iter().find(|(_, px)| px.len() != n) {
-        return Err(Error::encode(SHEET, format!("tile '{label}' is not {width}×{height}")));
+        return Err(Error::encode(
+            SHEET,
+            format!("tile '{label}' is not {width}×{height}"),
+        ));
     }
     let columns = columns.min(tiles.len());
     let rows = tiles.len().div_ceil(columns);
@@ -585,11 +593,22 @@ pub fn contact_sheet(tiles: &[(String, Vec<[u8; 3]>)], width: u32, height: u32, 
     }
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (canvas_w, canvas_h)).into_drawing_area();
-        let style = ("sans-serif", 13).into_font().color(&BLACK);
+        let style = ("sans-serif", 11).into_font().color(&BLACK);
+        // About 6 px per character at this size: cut labels to the tile.
+        let fit = (width as usize / 6).max(4);
         for (k, (label, _)) in tiles.iter().enumerate() {
+            let label: String = if label.chars().count() > fit {
+                label
+                    .chars()
+                    .take(fit - 1)
+                    .chain(std::iter::once('…'))
+                    .collect()
+            } else {
+                label.clone()
+            };
             let x0 = gap + (k % columns) as u32 * cell_w;
             let y0 = gap + (k / columns) as u32 * cell_h;
-            root.draw(&Text::new(label.clone(), (x0 as i32, y0 as i32 + 2), style.clone()))
+            root.draw(&Text::new(label, (x0 as i32, y0 as i32 + 2), style.clone()))
                 .map_err(|e| Error::encode(SHEET, e))?;
         }
         root.present().map_err(|e| Error::encode(SHEET, e))?;

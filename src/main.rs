@@ -16,6 +16,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
+use nusselt::hierarchical::{Accuracy, HierarchicalSettings, Preset};
+use nusselt::links::Oracle;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::output::OutputSet;
@@ -41,7 +43,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Solve a scene and write solution.exr, baked.gltf, render.exr/png and report.json.
-    Solve(SolveArgs),
+    Solve(Box<SolveArgs>),
     /// Render a new view of an earlier solution without solving again.
     Render(RenderArgs),
     /// Form factors between the scene's surfaces (glTF nodes), as CSV on stdout.
@@ -169,20 +171,29 @@ struct SolveArgs {
     /// Output folder (default: out/<scene stem>).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Solver (all on a uniform mesh with a dense matrix).
+    /// Solver: a classic solver on a uniform mesh with a dense matrix, or
+    /// hierarchical (adaptive elements and links; experimental: it still
+    /// leaks light where objects stand on the floor).
     #[arg(long, value_enum, default_value_t = Method::Jacobi)]
     method: Method,
-    /// Largest element edge in metres (default: 1/25 of the scene diagonal).
+    /// Classic methods: largest element edge in metres (default: 1/25 of the
+    /// scene diagonal). Ignored by hierarchical, which sizes its elements
+    /// itself.
     #[arg(long)]
     element_size: Option<f64>,
+    #[command(flatten)]
+    hierarchical: HierarchicalArgs,
     #[command(flatten)]
     kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
     /// fraction of the largest. Shooting: stop when the unshot power is below
-    /// this fraction of the emitted power.
+    /// this fraction of the emitted power. Hierarchical: stop each round's
+    /// gathering when the total power Σ B·A changes by less than this
+    /// fraction.
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
-    /// Iteration budget: sweeps (gathering) or shots (shooting).
+    /// Iteration budget: sweeps (gathering, per round for hierarchical) or
+    /// shots (shooting).
     #[arg(long, default_value_t = 1_000_000)]
     max_iterations: usize,
     /// Render snapshots after these iterations, e.g. 1,2,24,100.
@@ -199,6 +210,8 @@ struct SolveArgs {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 enum Method {
+    /// Hierarchical radiosity [HSA91]: quadtrees, links, oracle refinement.
+    Hierarchical,
     /// LU factorisation of the full system (Gaussian elimination).
     Direct,
     /// Jacobi gathering.
@@ -210,13 +223,128 @@ enum Method {
 }
 
 impl Method {
-    fn classic(self) -> ClassicMethod {
+    fn method(self) -> pipeline::Method {
+        let classic = |m| pipeline::Method::Classic(m);
         match self {
-            Method::Direct => ClassicMethod::Direct,
-            Method::Jacobi => ClassicMethod::Jacobi,
-            Method::GaussSeidel => ClassicMethod::GaussSeidel,
-            Method::Shooting => ClassicMethod::Shooting,
+            Method::Hierarchical => pipeline::Method::Hierarchical,
+            Method::Direct => classic(ClassicMethod::Direct),
+            Method::Jacobi => classic(ClassicMethod::Jacobi),
+            Method::GaussSeidel => classic(ClassicMethod::GaussSeidel),
+            Method::Shooting => classic(ClassicMethod::Shooting),
         }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum AccuracyName {
+    /// Coarse: a quick look.
+    Preview,
+    /// Soft shadows resolved at interactive cost.
+    Default,
+    /// Finer elements and links for final images.
+    High,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum OracleName {
+    /// Form factor above --ff-eps [HSA91].
+    Ff,
+    /// Brightness-weighted error above --bf-eps (partly visible links first).
+    Bf,
+    /// Transported power above --power-eps.
+    Power,
+}
+
+/// The hierarchical method's accuracy: one preset, and expert overrides of
+/// each of its thresholds.
+#[derive(Args, Debug)]
+struct HierarchicalArgs {
+    /// Accuracy preset of the hierarchical method; the flags below override
+    /// single thresholds.
+    #[arg(long, value_enum, default_value_t = AccuracyName::Default)]
+    accuracy: AccuracyName,
+    /// Refinement oracle of the hierarchical method.
+    #[arg(long, value_enum, default_value_t = OracleName::Bf)]
+    oracle: OracleName,
+    /// ff oracle: largest form factor a link may keep.
+    #[arg(long)]
+    ff_eps: Option<f64>,
+    /// bf oracle: largest ρ·B·(form-factor and visibility error) a link may
+    /// keep, as a fraction of the mean emitted exitance.
+    #[arg(long)]
+    bf_eps: Option<f64>,
+    /// power oracle: largest power a link may carry, as a fraction of the
+    /// largest patch emitted power.
+    #[arg(long)]
+    power_eps: Option<f64>,
+    /// Smallest element, as a fraction of the total surface area.
+    #[arg(long)]
+    min_area: Option<f64>,
+    /// Split leaves whose radiosity differs from a sibling's by more than
+    /// this fraction of the mean emitted exitance (0 disables).
+    #[arg(long)]
+    gradient_tol: Option<f64>,
+    /// Link budget: refinement stops there (the report says so).
+    #[arg(long)]
+    max_links: Option<u64>,
+    /// Refinement rounds (refine + solve) at most.
+    #[arg(long)]
+    max_rounds: Option<usize>,
+}
+
+impl HierarchicalArgs {
+    fn settings(
+        &self,
+        seed: u64,
+        rays: usize,
+        tolerance: f64,
+        max_iterations: usize,
+    ) -> Result<HierarchicalSettings> {
+        let mut a = Accuracy::preset(match self.accuracy {
+            AccuracyName::Preview => Preset::Preview,
+            AccuracyName::Default => Preset::Default,
+            AccuracyName::High => Preset::High,
+        });
+        let positive = |name: &str, v: Option<f64>, slot: &mut f64| -> Result<()> {
+            if let Some(v) = v {
+                if !(v > 0.0 && v.is_finite()) {
+                    bail!("--{name} must be a positive number");
+                }
+                *slot = v;
+            }
+            Ok(())
+        };
+        positive("ff-eps", self.ff_eps, &mut a.ff_eps)?;
+        positive("bf-eps", self.bf_eps, &mut a.bf_eps)?;
+        positive("power-eps", self.power_eps, &mut a.power_eps)?;
+        positive("min-area", self.min_area, &mut a.min_area)?;
+        if let Some(g) = self.gradient_tol {
+            if !(g >= 0.0 && g.is_finite()) {
+                bail!("--gradient-tol must be zero or positive");
+            }
+            a.gradient_tol = g;
+        }
+        if let Some(m) = self.max_links {
+            a.max_links = Some(m);
+        }
+        if let Some(r) = self.max_rounds {
+            if r == 0 {
+                bail!("--max-rounds must be at least 1");
+            }
+            a.max_rounds = r;
+        }
+        Ok(HierarchicalSettings {
+            oracle: match self.oracle {
+                OracleName::Ff => Oracle::Ff,
+                OracleName::Bf => Oracle::Bf,
+                OracleName::Power => Oracle::Power,
+            },
+            accuracy: a,
+            visibility_rays: rays,
+            seed,
+            tolerance,
+            max_iterations,
+        })
     }
 }
 
@@ -238,9 +366,11 @@ struct KernelArgs {
     /// Form-factor kernel.
     #[arg(long, value_enum, default_value_t = KernelName::PointPolygon)]
     kernel: KernelName,
-    /// Visibility rays per element pair (point-polygon) or per quadrature point (polygon-polygon).
-    #[arg(long, default_value_t = 4)]
-    visibility_rays: usize,
+    /// Visibility rays per element pair (point-polygon; default 4), per
+    /// quadrature point (polygon-polygon; default 4) or per link
+    /// (hierarchical; default 9).
+    #[arg(long)]
+    visibility_rays: Option<usize>,
     /// Point pairs per element pair (sampling; default 16 for `solve`,
     /// 4096 for `formfactors`).
     #[arg(long)]
@@ -280,7 +410,7 @@ impl KernelArgs {
                 KernelName::Sampling => Kernel::Sampling,
                 KernelName::Hemicube => Kernel::Hemicube,
             },
-            visibility_rays: self.visibility_rays.max(1),
+            visibility_rays: self.visibility_rays.unwrap_or(4).max(1),
             samples: self.samples.unwrap_or(default_samples).max(1),
             quadrature_tolerance: self.quadrature_tolerance,
             hemicube_resolution: self.hemicube_resolution,
@@ -405,8 +535,15 @@ fn run_solve(args: SolveArgs) -> Result<()> {
     };
     let scene = load_scene(&args.scene, &options)?;
     let load_time = start.elapsed().as_secs_f64();
+    let hierarchical = args.hierarchical.settings(
+        args.common.seed,
+        args.kernel.visibility_rays.unwrap_or(9).max(1),
+        args.tolerance,
+        args.max_iterations,
+    )?;
     let settings = SolveSettings {
-        method: args.method.classic(),
+        method: args.method.method(),
+        hierarchical,
         element_size: args.element_size,
         matrix,
         convergence: Convergence {
@@ -674,8 +811,10 @@ fn run_study(args: StudyArgs) -> Result<()> {
     let progress = Progress::new(!args.common.quiet);
     let mut config: nusselt::study::StudyConfig = match &args.config {
         Some(path) => {
-            let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-            serde_json::from_slice(&bytes).with_context(|| format!("{}: not a study configuration", path.display()))?
+            let bytes =
+                std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+            serde_json::from_slice(&bytes)
+                .with_context(|| format!("{}: not a study configuration", path.display()))?
         }
         None => Default::default(),
     };
@@ -733,7 +872,7 @@ fn main() -> ExitCode {
     }));
     let cli = Cli::parse();
     let result = std::panic::catch_unwind(|| match cli.command {
-        Command::Solve(args) => run_solve(args),
+        Command::Solve(args) => run_solve(*args),
         Command::Render(args) => run_render(args),
         Command::Formfactors(args) => run_formfactors(args),
         Command::Compare(args) => run_compare(args),

@@ -16,12 +16,13 @@ use serde_json::json;
 
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::hierarchical::{HierarchicalSettings, leaf_output_mesh, solve_hierarchical};
 use crate::matrix::{FormFactorMatrix, MatrixSettings};
 use crate::mesh::OutputMesh;
 use crate::output::{self, OutputSet};
 use crate::progress::Progress;
 use crate::render::{RenderSettings, render};
-use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report};
+use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report, RoundEntry};
 use crate::scene::Scene;
 use crate::solve::{ClassicMethod, Convergence, System};
 use crate::uniform::UniformMesh;
@@ -31,12 +32,32 @@ use crate::visibility::TriangleBvh;
 /// Default element size as a fraction of the scene diagonal.
 pub const DEFAULT_ELEMENT_FRACTION: f64 = 1.0 / 25.0;
 
+/// How a scene is solved: hierarchically (the default), or by a classic
+/// solver on a uniform mesh with a dense matrix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Hierarchical,
+    Classic(ClassicMethod),
+}
+
+impl Method {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Hierarchical => "hierarchical",
+            Method::Classic(m) => m.name(),
+        }
+    }
+}
+
 /// Everything `nusselt solve` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveSettings {
-    pub method: ClassicMethod,
-    /// Largest element edge in metres; `None` = [`DEFAULT_ELEMENT_FRACTION`]
-    /// of the scene diagonal.
+    pub method: Method,
+    /// Thresholds, oracle and rays of the hierarchical method.
+    pub hierarchical: HierarchicalSettings,
+    /// Classic methods: largest element edge in metres; `None` =
+    /// [`DEFAULT_ELEMENT_FRACTION`] of the scene diagonal.
     pub element_size: Option<f64>,
     /// Form-factor kernel, rays, seed and memory budget.
     pub matrix: MatrixSettings,
@@ -50,7 +71,8 @@ pub struct SolveSettings {
 impl Default for SolveSettings {
     fn default() -> Self {
         SolveSettings {
-            method: ClassicMethod::Jacobi,
+            method: Method::Classic(ClassicMethod::Jacobi),
+            hierarchical: HierarchicalSettings::default(),
             element_size: None,
             matrix: MatrixSettings::default(),
             convergence: Convergence::default(),
@@ -86,10 +108,163 @@ fn secs(t: Instant) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
-/// Solves `scene` with a classic method on a uniform mesh and renders the
-/// default view (and the requested snapshots). `report.times.load` and `report.scene` are left for the
-/// caller.
+/// Solves `scene` with the method of `settings` and renders the default
+/// view (and the requested snapshots). `report.times.load` and
+/// `report.scene` are left for the caller.
 pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Result<SolveRun> {
+    match settings.method {
+        Method::Hierarchical => solve_with_hierarchy(scene, settings, progress),
+        Method::Classic(method) => solve_classic(scene, settings, method, progress),
+    }
+}
+
+/// The hierarchical path: link, refine and solve [HSA91], then the leaf
+/// output mesh. Snapshots show the final state.
+fn solve_with_hierarchy(
+    scene: &Scene,
+    settings: &SolveSettings,
+    progress: &Progress,
+) -> Result<SolveRun> {
+    let start = Instant::now();
+    let hs = &settings.hierarchical;
+    let mut report = Report {
+        nusselt_version: env!("CARGO_PKG_VERSION").to_string(),
+        method: settings.method.name().into(),
+        threads: rayon::current_num_threads(),
+        warnings: scene.warnings.clone(),
+        ..Report::default()
+    };
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+
+    let t = Instant::now();
+    let bvh = scene_bvh(scene);
+    report.times.bvh = secs(t);
+
+    let solution = solve_hierarchical(scene, &bvh, hs, progress);
+    report.times.linking = solution.times.linking;
+    report.times.refinement = solution.times.refinement;
+    report.times.solve = solution.times.solve;
+
+    let h = &solution.hierarchy;
+    let leaves: Vec<usize> = h.leaves().map(|id| id.index()).collect();
+    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
+        leaves.iter().map(|&i| f(i)).sum::<DVec3>().to_array()
+    };
+    let patch = |i: usize| &scene.patches[h.elements[i].patch as usize];
+    report.power = Power {
+        emitted: sum(&|i| patch(i).emission * h.elements[i].area),
+        absorbed: sum(&|i| {
+            (DVec3::ONE - patch(i).reflectance) * solution.irradiance[i] * h.elements[i].area
+        }),
+        radiated: sum(&|i| h.elements[i].radiosity * h.elements[i].area),
+    };
+    report.convergence = ConvergenceReport {
+        converged: solution.converged,
+        iterations: solution.history.len(),
+        tolerance: hs.tolerance,
+        history: solution
+            .history
+            .iter()
+            .map(|h| HistoryEntry {
+                iteration: h.iteration,
+                residual: h.residual,
+                seconds: h.seconds,
+            })
+            .collect(),
+        rounds: solution
+            .rounds
+            .iter()
+            .map(|r| RoundEntry {
+                round: r.round,
+                split_links: r.split_links,
+                gradient_splits: r.gradient_splits,
+                elements: r.elements,
+                leaves: r.leaves,
+                links: r.links,
+                iterations: r.iterations,
+                seconds: r.seconds,
+            })
+            .collect(),
+    };
+    if !solution.converged {
+        report.warnings.push(format!(
+            "hierarchical: the last solve did not reach the tolerance {} within {} iterations",
+            hs.tolerance, hs.max_iterations
+        ));
+    }
+    if solution.budget_reached {
+        report.warnings.push(format!(
+            "hierarchical: refinement stopped at the link budget of {} links",
+            hs.accuracy.max_links.unwrap_or(0)
+        ));
+    }
+    if solution.rounds_exhausted {
+        report.warnings.push(format!(
+            "hierarchical: refinement stopped after {} rounds with links still above the threshold",
+            hs.accuracy.max_rounds
+        ));
+    }
+
+    let t = Instant::now();
+    let out = leaf_output_mesh(scene, h);
+    report.times.output_mesh = secs(t);
+
+    let t = Instant::now();
+    let frame = render(&out, &view, &settings.render, progress);
+    report.times.render += secs(t);
+    let mut snapshots = Vec::new();
+    for &k in &settings.snapshots {
+        if !snapshots.iter().any(|(j, _)| *j == k) {
+            snapshots.push((k, frame.clone()));
+        }
+    }
+
+    report.counts = Counts {
+        input_triangles: scene.stats.input_triangles,
+        degenerate_dropped: scene.stats.degenerate_dropped,
+        merged_quads: scene.stats.merged_quads,
+        patches: scene.patches.len(),
+        elements: h.len(),
+        leaves: leaves.len(),
+        links: solution.link_count(),
+        visibility_rays: solution.visibility_rays,
+        memory_bytes: solution.memory_bytes(),
+        output_vertices: out.vertex_count(),
+        output_triangles: out.triangles.len(),
+    };
+    let th = &solution.thresholds;
+    report.settings = json!({
+        "method": settings.method.name(),
+        "hierarchical": hs,
+        "scaled_thresholds": {
+            "ff_eps": th.ff_eps,
+            "bf_eps": th.bf_eps,
+            "power_eps": th.power_eps,
+            "min_area": th.min_area,
+        },
+        "render": settings.render,
+        "snapshots": settings.snapshots,
+        "width": view.width,
+        "height": view.height,
+    });
+    report.exposure = frame_exposure(&frame);
+    report.view = Some(view);
+    report.times.total = secs(start);
+    Ok(SolveRun {
+        mesh: out,
+        frame,
+        snapshots,
+        report,
+    })
+}
+
+/// The classic path: uniform mesh, dense matrix, classic solver.
+fn solve_classic(
+    scene: &Scene,
+    settings: &SolveSettings,
+    method: ClassicMethod,
+    progress: &Progress,
+) -> Result<SolveRun> {
     let start = Instant::now();
     let mut report = Report {
         nusselt_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -153,7 +328,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     };
     let solution = crate::solve::solve(
         &system,
-        settings.method,
+        method,
         &settings.convergence,
         settings.matrix.memory_budget,
         &mut observe,
@@ -184,11 +359,12 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
                 seconds: h.seconds,
             })
             .collect(),
+        rounds: Vec::new(),
     };
     if !solution.converged {
         report.warnings.push(format!(
             "{} did not reach the tolerance {} within {} iterations",
-            settings.method.name(),
+            method.name(),
             settings.convergence.tolerance,
             settings.convergence.max_iterations
         ));
@@ -218,13 +394,14 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
         leaves: mesh.elements.len(),
         links: stats.nonzero_pairs,
         visibility_rays: stats.visibility_rays,
+        memory_bytes: FormFactorMatrix::bytes_for(mesh.elements.len()),
         output_vertices: out.vertex_count(),
         output_triangles: out.triangles.len(),
     };
     report.max_row_sum = stats.max_row_sum;
     report.mean_row_sum = stats.mean_row_sum;
     report.settings = json!({
-        "method": settings.method,
+        "method": method,
         "element_size": element_size,
         "matrix": settings.matrix,
         "convergence": settings.convergence,

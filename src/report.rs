@@ -15,6 +15,12 @@ use crate::view::View;
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimes {
     pub load: f64,
+    /// Hierarchical: initial linking of the input patches.
+    #[serde(default)]
+    pub linking: f64,
+    /// Hierarchical: link and gradient refinement after the first solve.
+    #[serde(default)]
+    pub refinement: f64,
     pub bvh: f64,
     pub mesh: f64,
     pub form_factors: f64,
@@ -37,6 +43,9 @@ pub struct Counts {
     /// Non-zero element interactions (matrix entries or hierarchy links).
     pub links: u64,
     pub visibility_rays: u64,
+    /// Bytes held by the elements and the links (or the matrix).
+    #[serde(default)]
+    pub memory_bytes: u64,
     pub output_vertices: usize,
     pub output_triangles: usize,
 }
@@ -49,6 +58,20 @@ pub struct HistoryEntry {
     pub seconds: f64,
 }
 
+/// One refinement round of the hierarchical solver: what it split, the
+/// sizes after it, and the solve that followed.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RoundEntry {
+    pub round: usize,
+    pub split_links: u64,
+    pub gradient_splits: u64,
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: u64,
+    pub iterations: usize,
+    pub seconds: f64,
+}
+
 /// How the solve ended.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ConvergenceReport {
@@ -56,6 +79,9 @@ pub struct ConvergenceReport {
     pub iterations: usize,
     pub tolerance: f64,
     pub history: Vec<HistoryEntry>,
+    /// Hierarchical: one entry per refinement round.
+    #[serde(default)]
+    pub rounds: Vec<RoundEntry>,
 }
 
 /// Energy balance, W per channel.

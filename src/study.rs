@@ -84,9 +84,24 @@ impl Default for StudyConfig {
                     element_fractions: Vec::new(),
                     accuracy: vec!["preview".into(), "default".into(), "high".into()],
                 },
-                classic("jacobi, point-polygon", "jacobi", Kernel::PointPolygon, &[0.1, 0.07, 0.05, 0.035]),
-                classic("gauss-seidel, hemicube", "gauss-seidel", Kernel::Hemicube, &[0.1, 0.07, 0.05]),
-                classic("shooting, point-polygon", "shooting", Kernel::PointPolygon, &[0.1, 0.07, 0.05]),
+                classic(
+                    "jacobi, point-polygon",
+                    "jacobi",
+                    Kernel::PointPolygon,
+                    &[0.1, 0.07, 0.05, 0.035],
+                ),
+                classic(
+                    "gauss-seidel, hemicube",
+                    "gauss-seidel",
+                    Kernel::Hemicube,
+                    &[0.1, 0.07, 0.05],
+                ),
+                classic(
+                    "shooting, point-polygon",
+                    "shooting",
+                    Kernel::PointPolygon,
+                    &[0.1, 0.07, 0.05],
+                ),
             ],
         }
     }
@@ -178,8 +193,14 @@ fn reference_image(
     };
     let mut result = reference::render_reference(scene, view, &settings, progress)?;
     result.stats.scene = scene_name.to_string();
-    files.push(("reference.exr".into(), output::exr::encode_image(&result.image)?));
-    files.push(("reference.noise.exr".into(), output::exr::encode_image(&result.noise)?));
+    files.push((
+        "reference.exr".into(),
+        output::exr::encode_image(&result.image)?,
+    ));
+    files.push((
+        "reference.noise.exr".into(),
+        output::exr::encode_image(&result.noise)?,
+    ));
     files.push(("reference.json".into(), output::write_json(&result.stats)?));
     files.push(("reference-view.json".into(), output::write_json(view)?));
     Ok((result.image, result.noise))
@@ -205,7 +226,8 @@ pub fn run_study(
     let (reference, noise) = match given_reference {
         Some((image, noise)) => (image, noise),
         None => {
-            let (image, noise) = reference_image(scene, scene_name, &view, config, dir, progress, &mut files)?;
+            let (image, noise) =
+                reference_image(scene, scene_name, &view, config, dir, progress, &mut files)?;
             (image, Some(noise))
         }
     };
@@ -232,9 +254,15 @@ pub fn run_study(
                     .collect(),
                 ..reference.clone()
             };
-            ("reference noise".to_string(), false_colour(&compare::relative_luminance_error(&noisy, &reference)))
+            (
+                "reference noise".to_string(),
+                false_colour(&compare::relative_luminance_error(&noisy, &reference)),
+            )
         }
-        None => ("(noise unknown)".to_string(), vec![chart::BACKGROUND; reference.pixels.len()]),
+        None => (
+            "(noise unknown)".to_string(),
+            vec![chart::BACKGROUND; reference.pixels.len()],
+        ),
     });
     for spec in &config.runs {
         let method = parse_method(&spec.method)?;
@@ -292,7 +320,12 @@ pub fn run_study(
                 elements: run.report.counts.elements,
                 leaves: run.report.counts.leaves,
                 links: run.report.counts.links,
-                solve_seconds: times.bvh + times.mesh + times.form_factors + times.linking + times.refinement + times.solve,
+                solve_seconds: times.bvh
+                    + times.mesh
+                    + times.form_factors
+                    + times.linking
+                    + times.refinement
+                    + times.solve,
                 render_seconds: times.render,
                 converged: run.report.convergence.converged,
                 rmse: o.rmse,
@@ -301,11 +334,24 @@ pub fn run_study(
                 noise_corrected_rmse: o.noise_corrected_rmse,
             });
             let name = format!("{}-{}", slug(&spec.label), slug(&setting));
-            files.push((format!("runs/{name}.png"), output::png::encode_png(&run.frame, exposure)?));
+            files.push((
+                format!("runs/{name}.png"),
+                output::png::encode_png(&run.frame, exposure)?,
+            ));
             let errors = compare::relative_luminance_error(&run.frame, &reference);
-            tiles.push((format!("{} {setting}", spec.label), display(&run.frame, exposure)));
+            let short = match method {
+                Method::Hierarchical => setting.clone(),
+                Method::Classic(_) => format!("h={setting}"),
+            };
             tiles.push((
-                format!("error {:.1} %", 100.0 * o.relative_rmse.unwrap_or(f64::NAN)),
+                format!("{short} {}", spec.method),
+                display(&run.frame, exposure),
+            ));
+            tiles.push((
+                format!(
+                    "rel. RMSE {:.1} %",
+                    100.0 * o.relative_rmse.unwrap_or(f64::NAN)
+                ),
                 false_colour(&errors),
             ));
         }
@@ -401,7 +447,13 @@ fn display(frame: &Frame, exposure: f32) -> Vec<[u8; 3]> {
 
 fn slug(s: &str) -> String {
     s.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '.' { c } else { '-' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' {
+                c
+            } else {
+                '-'
+            }
+        })
         .collect()
 }
 
@@ -424,7 +476,9 @@ fn csv(rows: &[StudyRow]) -> String {
             r.rmse,
             r.relative_rmse,
             r.mean_relative_error,
-            r.noise_corrected_rmse.map(|v| format!("{v:.6e}")).unwrap_or_default()
+            r.noise_corrected_rmse
+                .map(|v| format!("{v:.6e}"))
+                .unwrap_or_default()
         ));
     }
     out

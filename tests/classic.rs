@@ -20,7 +20,7 @@ const METHODS: [ClassicMethod; 4] = [
 
 /// A closed box (sides `size`) seen from inside, every face emitting
 /// radiance `le` with reflectance `rho`.
-fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
+pub fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
     let s = size;
     let p = |x: f64, y: f64, z: f64| DVec3::new(x * s.x, y * s.y, z * s.z);
     let quads = [

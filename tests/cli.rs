@@ -158,6 +158,8 @@ fn matrix_over_the_memory_budget_is_refused_with_its_size() {
             "solve",
             &p,
             "-q",
+            "--method",
+            "jacobi",
             "--element-size",
             "0.01",
             "--memory-budget",

@@ -1,0 +1,759 @@
+//! The hierarchical radiosity solver [HSA91] with multigridding: initial
+//! linking of the input patches, oracle-driven link refinement, gradient
+//! refinement, and gather + push-pull iterations.
+//!
+//! Owns: [`Accuracy`] (the presets and every threshold),
+//! [`HierarchicalSettings`], [`solve_hierarchical`] and the output mesh of a
+//! hierarchy, [`leaf_output_mesh`].
+//!
+//! Invariants:
+//! - Links live with their receivers (`links[receiver]`), in an order that
+//!   depends only on the scene and the settings: refinement runs serially
+//!   over candidate lists in id order, and only the independent work (link
+//!   evaluation, oracle decisions, gathers) runs in parallel, each result
+//!   written to its own slot. Results are identical for any thread count.
+//! - Every threshold is relative to the scene (mean emitted exitance,
+//!   largest patch emitted power, total area), so a setting means the same
+//!   at any scale.
+//! - After [`solve_hierarchical`], every element's radiosity is consistent
+//!   with push-pull: B = E + ρ H at leaves, the area-weighted mean of the
+//!   children above.
+//!
+//! The loop ("multigridding", [HSA91] §5): refine every link with the
+//! current radiosities; gather + push-pull until the total power Σ B·A
+//! changes by less than the tolerance; split leaves whose radiosity differs
+//! from a sibling's by more than the gradient tolerance; repeat until a
+//! round changes nothing or `max_rounds` is reached.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::hierarchy::{ElementId, Hierarchy};
+use crate::links::{
+    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other,
+    split_at_any_visibility,
+};
+use crate::mesh::OutputMesh;
+use crate::progress::Progress;
+use crate::scene::{Scene, Shape};
+use crate::visibility::TriangleBvh;
+
+/// The named accuracy presets of `--accuracy`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    Preview,
+    Default,
+    High,
+}
+
+/// Every threshold of the hierarchical solver, relative to the scene.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Accuracy {
+    /// ff oracle: largest accepted form factor.
+    pub ff_eps: f64,
+    /// bf oracle: largest accepted ρ_r B_s (V F_err + V_err F + V_err F_err),
+    /// as a fraction of the mean emitted exitance (Φ / A_total).
+    pub bf_eps: f64,
+    /// power oracle: largest accepted A_r F V ρ_r B_s, as a fraction of the
+    /// largest patch emitted power.
+    pub power_eps: f64,
+    /// Elements at or below this fraction of the total area are not split.
+    pub min_area: f64,
+    /// Leaves whose radiosity differs from a sibling's by more than this
+    /// fraction of the mean emitted exitance are split (0 disables).
+    pub gradient_tol: f64,
+    /// Link budget: refinement stops when it is reached (`None`: unlimited).
+    pub max_links: Option<u64>,
+    /// Refinement rounds (refine, solve) at most.
+    pub max_rounds: usize,
+}
+
+impl Accuracy {
+    /// Quick look: coarse shadows.
+    pub fn preview() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.05,
+            bf_eps: 0.2,
+            power_eps: 1e-3,
+            min_area: 1e-4,
+            gradient_tol: 0.5,
+            max_links: None,
+            max_rounds: 3,
+        }
+    }
+
+    /// The default: soft shadows resolved on the Cornell box in about a
+    /// second.
+    #[allow(clippy::should_implement_trait)]
+    pub fn default() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.01,
+            bf_eps: 0.03,
+            power_eps: 1e-4,
+            min_area: 2e-5,
+            gradient_tol: 0.15,
+            max_links: None,
+            max_rounds: 5,
+        }
+    }
+
+    /// Finer elements and links for final images.
+    pub fn high() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.002,
+            bf_eps: 0.006,
+            power_eps: 2e-5,
+            min_area: 4e-6,
+            gradient_tol: 0.05,
+            max_links: None,
+            max_rounds: 8,
+        }
+    }
+
+    /// The preset's values.
+    pub fn preset(p: Preset) -> Accuracy {
+        match p {
+            Preset::Preview => Accuracy::preview(),
+            Preset::Default => Accuracy::default(),
+            Preset::High => Accuracy::high(),
+        }
+    }
+}
+
+impl Default for Accuracy {
+    fn default() -> Self {
+        Accuracy::default()
+    }
+}
+
+/// How `solve --method hierarchical` runs.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HierarchicalSettings {
+    pub oracle: Oracle,
+    pub accuracy: Accuracy,
+    /// Rays per link for its visible fraction.
+    pub visibility_rays: usize,
+    pub seed: u64,
+    /// Stop gathering when Σ B·A changes by less than this fraction.
+    pub tolerance: f64,
+    /// Gather + push-pull iterations per round at most.
+    pub max_iterations: usize,
+}
+
+impl Default for HierarchicalSettings {
+    fn default() -> Self {
+        HierarchicalSettings {
+            oracle: Oracle::Bf,
+            accuracy: Accuracy::default(),
+            visibility_rays: 9,
+            seed: 0,
+            tolerance: 1e-5,
+            max_iterations: 10_000,
+        }
+    }
+}
+
+/// One gather + push-pull iteration.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Iteration {
+    pub iteration: usize,
+    /// Relative change of the total power Σ B·A.
+    pub residual: f64,
+    /// Seconds since the solve started.
+    pub seconds: f64,
+}
+
+/// What one refinement round did.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Round {
+    pub round: usize,
+    /// Links the oracle split this round.
+    pub split_links: u64,
+    /// Leaves split for their radiosity gradient.
+    pub gradient_splits: u64,
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: u64,
+    /// Iterations of the solve that followed.
+    pub iterations: usize,
+    pub seconds: f64,
+}
+
+/// Timings, in seconds.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct HierarchicalTimes {
+    pub linking: f64,
+    pub refinement: f64,
+    pub solve: f64,
+}
+
+/// The result of [`solve_hierarchical`].
+#[derive(Clone, Debug)]
+pub struct HierarchicalSolution {
+    pub hierarchy: Hierarchy,
+    /// `links[e]`: the links element e gathers over.
+    pub links: Vec<Vec<Link>>,
+    /// Total irradiance H (own links + pushed from ancestors) per element;
+    /// meaningful at leaves, where B = E + ρ H.
+    pub irradiance: Vec<DVec3>,
+    pub history: Vec<Iteration>,
+    pub rounds: Vec<Round>,
+    /// The last solve met the tolerance.
+    pub converged: bool,
+    /// Refinement stopped at `max_links`.
+    pub budget_reached: bool,
+    /// Refinement stopped at `max_rounds` with links still to split.
+    pub rounds_exhausted: bool,
+    pub visibility_rays: u64,
+    pub times: HierarchicalTimes,
+    /// The thresholds used, in scene units.
+    pub thresholds: Thresholds,
+}
+
+impl HierarchicalSolution {
+    /// Number of links.
+    pub fn link_count(&self) -> u64 {
+        self.links.iter().map(|l| l.len() as u64).sum()
+    }
+
+    /// Bytes held by the hierarchy and the links (capacities included).
+    pub fn memory_bytes(&self) -> u64 {
+        let lists = self.links.capacity() * std::mem::size_of::<Vec<Link>>();
+        let links: usize = self
+            .links
+            .iter()
+            .map(|l| l.capacity() * std::mem::size_of::<Link>())
+            .sum();
+        let irradiance = self.irradiance.capacity() * std::mem::size_of::<DVec3>();
+        (self.hierarchy.memory_bytes() + lists + links + irradiance) as u64
+    }
+
+    /// Irradiance per element from the links whose source lies on a patch
+    /// accepted by `from_patch`, own links plus those of every ancestor.
+    pub fn irradiance_from(&self, from_patch: impl Fn(u32) -> bool) -> Vec<DVec3> {
+        let h = &self.hierarchy;
+        let own: Vec<DVec3> = self
+            .links
+            .iter()
+            .map(|ls| {
+                ls.iter()
+                    .filter(|l| from_patch(h.get(l.source).patch))
+                    .map(|l| l.coupling() * h.get(l.source).radiosity)
+                    .sum()
+            })
+            .collect();
+        // Parents precede their children in the arena.
+        let mut total = own;
+        for i in 0..h.len() {
+            if let Some(p) = h.elements[i].parent() {
+                let up = total[p.index()];
+                total[i] += up;
+            }
+        }
+        total
+    }
+}
+
+/// Mean emitted exitance Φ / A_total (largest channel), and the largest
+/// patch emitted power: the scales of the relative thresholds.
+fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
+    let area = scene.total_area();
+    let exitance = scene.emitted_power().max_element() / area;
+    let largest = scene
+        .patches
+        .iter()
+        .map(|p| (p.emission * p.area).max_element())
+        .fold(0.0, f64::max);
+    (exitance, largest, area)
+}
+
+/// The state of a solve in progress.
+struct Solver<'a> {
+    scene: &'a Scene,
+    bvh: &'a TriangleBvh,
+    settings: &'a HierarchicalSettings,
+    thresholds: Thresholds,
+    hierarchy: Hierarchy,
+    links: Vec<Vec<Link>>,
+    n_links: u64,
+    rays: u64,
+    budget_reached: bool,
+}
+
+impl Solver<'_> {
+    fn over_budget(&self, extra: u64) -> bool {
+        self.settings
+            .accuracy
+            .max_links
+            .is_some_and(|max| self.n_links + extra > max)
+    }
+
+    /// Carries out a split decision on the counted link (receiver `r`,
+    /// `link`): the link is removed and the child pairs are appended to
+    /// `next`. Returns false (nothing done) for `Accept` or when the link
+    /// budget is reached.
+    fn apply(
+        &mut self,
+        r: ElementId,
+        link: Link,
+        decision: Decision,
+        next: &mut Vec<(ElementId, ElementId)>,
+    ) -> bool {
+        let (receivers, sources) = match decision {
+            Decision::Accept => return false,
+            _ if self.over_budget(3) => {
+                self.budget_reached = true;
+                return false;
+            }
+            Decision::SplitReceiver => (self.hierarchy.split(r), [link.source; 4]),
+            Decision::SplitSource => ([r; 4], self.hierarchy.split(link.source)),
+        };
+        // One link becomes four.
+        self.n_links += 3;
+        next.extend(receivers.into_iter().zip(sources));
+        true
+    }
+
+    /// Evaluates the (receiver, source) pairs in parallel, then keeps the
+    /// accepted links, splits for the others and repeats until every new
+    /// link is accepted (or the budget stops it). Returns the links split.
+    fn settle(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
+        let mut splits = 0;
+        while !pending.is_empty() {
+            let rays = self.settings.visibility_rays;
+            let seed = self.settings.seed;
+            let (scene, bvh, elements) = (self.scene, self.bvh, &self.hierarchy.elements);
+            let t = &self.thresholds;
+            let evaluated: Vec<(Link, u64, Decision)> = pending
+                .par_iter()
+                .with_min_len(8)
+                .map(|&(r, s)| {
+                    let (re, se) = (&elements[r.index()], &elements[s.index()]);
+                    let rho = scene.patches[re.patch as usize].reflectance;
+                    let skip = |l: &Link| split_at_any_visibility(t, l, re, se, rho);
+                    let (link, cast) = evaluate_link(scene, elements, r, s, bvh, rays, seed, skip);
+                    let d = decide(t, &link, re, se, rho);
+                    (link, cast, d)
+                })
+                .collect();
+            let mut next = Vec::new();
+            for (&(r, _), (link, cast, decision)) in pending.iter().zip(evaluated) {
+                self.rays += cast;
+                if self.apply(r, link, decision, &mut next) {
+                    splits += 1;
+                    continue;
+                }
+                let mut link = link;
+                if decision != Decision::Accept && cast == 0 {
+                    // The budget refused a split the oracle decided without
+                    // visibility rays: the kept link needs its visibility.
+                    let (l, c) = evaluate_link(
+                        self.scene,
+                        &self.hierarchy.elements,
+                        r,
+                        link.source,
+                        self.bvh,
+                        rays,
+                        seed,
+                        |_| false,
+                    );
+                    link = l;
+                    self.rays += c;
+                }
+                if link.coupling() > 0.0 {
+                    self.links[r.index()].push(link);
+                } else {
+                    // Fully occluded or facing away: no light, no link.
+                    self.n_links -= 1;
+                }
+            }
+            self.links.resize_with(self.hierarchy.len(), Vec::new);
+            pending = next;
+        }
+        splits
+    }
+
+    /// Links between every pair of patches that face each other and are
+    /// not fully occluded.
+    fn initial_links(&mut self) -> u64 {
+        let scene = self.scene;
+        let tol = 1e-9 * scene.diagonal();
+        let n = scene.patches.len();
+        let pairs: Vec<(ElementId, ElementId)> = (0..n)
+            .into_par_iter()
+            .flat_map_iter(|r| {
+                let pr = &scene.patches[r];
+                (0..n).filter_map(move |s| {
+                    let ps = &scene.patches[s];
+                    (r != s
+                        && faces_each_other(
+                            pr.vertices(),
+                            pr.normal,
+                            ps.vertices(),
+                            ps.normal,
+                            tol,
+                        ))
+                    .then_some((ElementId(r as u32), ElementId(s as u32)))
+                })
+            })
+            .collect();
+        self.n_links += pairs.len() as u64;
+        self.settle(pairs)
+    }
+
+    /// Re-runs the oracle on every link with the current radiosities and
+    /// refines those it rejects. Returns the links split.
+    fn refine(&mut self) -> u64 {
+        let decisions = self.decisions();
+        let mut next = Vec::new();
+        let mut splits = 0;
+        for (r, ds) in decisions.iter().enumerate() {
+            if ds.iter().all(|d| *d == Decision::Accept) {
+                continue;
+            }
+            let old = std::mem::take(&mut self.links[r]);
+            for (l, d) in old.into_iter().zip(ds) {
+                if !self.apply(ElementId(r as u32), l, *d, &mut next) {
+                    self.links[r].push(l);
+                } else {
+                    splits += 1;
+                }
+            }
+        }
+        self.links.resize_with(self.hierarchy.len(), Vec::new);
+        splits + self.settle(next)
+    }
+
+    /// Splits leaves whose radiosity differs from a sibling's by more than
+    /// `tol` (W/m²), pushing down to the children those of their own links
+    /// that can explain such a gradient: links whose brightness-weighted
+    /// variation ρ_r B_s (F_err + V_err F) exceeds `tol / 4`. The other links
+    /// keep feeding the split element as a whole. A leaf without such a
+    /// link is not split (its children would all be alike). Returns the
+    /// leaves split.
+    fn refine_gradients(&mut self, tol: f64) -> u64 {
+        if !(tol > 0.0) {
+            return 0;
+        }
+        let h = &self.hierarchy;
+        let rays = self.thresholds.rays.max(1) as f64;
+        let mut marked = Vec::new();
+        for e in &h.elements {
+            let Some(kids) = e.children() else { continue };
+            for &k in &kids {
+                let leaf = h.get(k);
+                if !leaf.is_leaf() || !(leaf.area > self.thresholds.min_area) {
+                    continue;
+                }
+                let differs = kids
+                    .iter()
+                    .any(|&o| (h.get(o).radiosity - leaf.radiosity).abs().max_element() > tol);
+                if differs {
+                    marked.push(k);
+                }
+            }
+        }
+        let mut pending = Vec::new();
+        let mut split = 0;
+        for k in marked {
+            let rho = self.scene.patches[self.hierarchy.get(k).patch as usize].reflectance;
+            let own = std::mem::take(&mut self.links[k.index()]);
+            let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
+                let b = (rho * self.hierarchy.get(l.source).radiosity).max_element();
+                let v = l.visibility as f64;
+                let v_err = if v > 0.0 && v < 1.0 { 1.0 } else { 1.0 / rays };
+                b * (l.error as f64 + v_err * l.form_factor as f64) > 0.25 * tol
+            });
+            self.links[k.index()] = keep;
+            let extra = 3 * down.len() as u64;
+            if down.is_empty() || self.over_budget(extra) {
+                self.budget_reached |= !down.is_empty();
+                self.links[k.index()].extend(down);
+                continue;
+            }
+            split += 1;
+            self.n_links += extra;
+            for child in self.hierarchy.split(k) {
+                for l in &down {
+                    pending.push((child, l.source));
+                }
+            }
+        }
+        self.links.resize_with(self.hierarchy.len(), Vec::new);
+        self.settle(pending);
+        split
+    }
+
+    /// Gather + push-pull until Σ B·A changes by less than the tolerance
+    /// (at least two iterations); appends to `history`. Returns whether the
+    /// tolerance was met.
+    fn iterate(
+        &mut self,
+        irradiance: &mut [DVec3],
+        history: &mut Vec<Iteration>,
+        start: Instant,
+    ) -> bool {
+        let mut power = f64::NAN;
+        for k in 0..self.settings.max_iterations.max(2) {
+            let gathered = self.gather();
+            let p = self.push_pull(&gathered, irradiance);
+            let residual = if power.is_nan() {
+                1.0
+            } else if p > 0.0 {
+                (p - power).abs() / p
+            } else {
+                0.0
+            };
+            power = p;
+            history.push(Iteration {
+                iteration: history.len() + 1,
+                residual,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+            if k > 0 && residual < self.settings.tolerance {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The oracle's decisions on every link, per receiver.
+    fn decisions(&self) -> Vec<Vec<Decision>> {
+        let t = self.thresholds;
+        let h = &self.hierarchy;
+        let scene = self.scene;
+        self.links
+            .par_iter()
+            .enumerate()
+            .map(|(r, ls)| {
+                let re = &h.elements[r];
+                let rho = scene.patches[re.patch as usize].reflectance;
+                ls.iter()
+                    .map(|l| decide(&t, l, re, h.get(l.source), rho))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Links the oracle would split now.
+    fn rejected_links(&self) -> usize {
+        self.decisions()
+            .iter()
+            .flatten()
+            .filter(|d| **d != Decision::Accept)
+            .count()
+    }
+
+    /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers.
+    fn gather(&self) -> Vec<DVec3> {
+        let h = &self.hierarchy;
+        self.links
+            .par_iter()
+            .with_min_len(64)
+            .map(|ls| {
+                ls.iter()
+                    .map(|l| l.coupling() * h.get(l.source).radiosity)
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// Push-pull from every root; returns Σ B·A (sum of channels) and fills
+    /// the total irradiance per element.
+    fn push_pull(&mut self, gathered: &[DVec3], irradiance: &mut [DVec3]) -> f64 {
+        // Parents precede children in the arena: push down in arena order,
+        // then pull up in reverse.
+        let h = &mut self.hierarchy;
+        for i in 0..h.len() {
+            let down = h.elements[i]
+                .parent()
+                .map_or(DVec3::ZERO, |p| irradiance[p.index()]);
+            irradiance[i] = gathered[i] + down;
+        }
+        for i in (0..h.len()).rev() {
+            let e = &h.elements[i];
+            let b = match e.children() {
+                None => {
+                    let p = &self.scene.patches[e.patch as usize];
+                    p.emission + p.reflectance * irradiance[i]
+                }
+                Some(kids) => {
+                    kids.iter()
+                        .map(|k| h.elements[k.index()].area * h.elements[k.index()].radiosity)
+                        .sum::<DVec3>()
+                        / e.area
+                }
+            };
+            h.elements[i].radiosity = b;
+            h.elements[i].gathered = gathered[i];
+        }
+        (0..h.root_count())
+            .map(|r| h.elements[r].radiosity.element_sum() * h.elements[r].area)
+            .sum()
+    }
+}
+
+/// Solves `scene` by hierarchical radiosity. Never fails: a scene without
+/// links simply radiates its emission.
+pub fn solve_hierarchical(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    settings: &HierarchicalSettings,
+    progress: &Progress,
+) -> HierarchicalSolution {
+    let start = Instant::now();
+    let acc = &settings.accuracy;
+    let (exitance, largest_power, area) = scene_scales(scene);
+    let thresholds = Thresholds {
+        oracle: settings.oracle,
+        ff_eps: acc.ff_eps,
+        bf_eps: acc.bf_eps * exitance,
+        power_eps: acc.power_eps * largest_power,
+        min_area: acc.min_area * area,
+        rays: settings.visibility_rays.max(1),
+    };
+    let mut solver = Solver {
+        scene,
+        bvh,
+        settings,
+        thresholds,
+        hierarchy: Hierarchy::new(scene),
+        links: vec![Vec::new(); scene.patches.len()],
+        n_links: 0,
+        rays: 0,
+        budget_reached: false,
+    };
+    let mut times = HierarchicalTimes::default();
+    let phase = progress.phase("hierarchical", acc.max_rounds.max(1) as u64);
+
+    let t = Instant::now();
+    let first_splits = solver.initial_links();
+    times.linking = t.elapsed().as_secs_f64();
+
+    let mut irradiance = vec![DVec3::ZERO; solver.hierarchy.len()];
+    let mut history = Vec::new();
+    let mut rounds = Vec::new();
+    let mut converged = false;
+    let mut rounds_exhausted = false;
+    let mut split_links = first_splits;
+    let mut gradient_splits = 0;
+    let mut round_start = Instant::now();
+    let max_rounds = acc.max_rounds.max(1);
+    for round in 0..max_rounds {
+        // Solve with the current links, warm-started.
+        let t = Instant::now();
+        irradiance.resize(solver.hierarchy.len(), DVec3::ZERO);
+        let first = history.len();
+        converged = solver.iterate(&mut irradiance, &mut history, start);
+        times.solve += t.elapsed().as_secs_f64();
+        rounds.push(Round {
+            round,
+            split_links,
+            gradient_splits,
+            elements: solver.hierarchy.len(),
+            leaves: solver.hierarchy.leaf_count(),
+            links: solver.n_links,
+            iterations: history.len() - first,
+            seconds: round_start.elapsed().as_secs_f64(),
+        });
+        phase.inc(1);
+        if solver.budget_reached {
+            break;
+        }
+        if round + 1 == max_rounds {
+            rounds_exhausted = solver.rejected_links() > 0;
+            break;
+        }
+        // Refine with the new radiosities.
+        round_start = Instant::now();
+        let t = Instant::now();
+        split_links = solver.refine();
+        gradient_splits = solver.refine_gradients(acc.gradient_tol * exitance);
+        times.refinement += t.elapsed().as_secs_f64();
+        if split_links == 0 && gradient_splits == 0 {
+            break;
+        }
+    }
+    // Links to fully occluded children were never kept; release spare
+    // capacity so the memory figure is what the solution holds.
+    for l in &mut solver.links {
+        l.shrink_to_fit();
+    }
+    solver.hierarchy.elements.shrink_to_fit();
+    irradiance.shrink_to_fit();
+    HierarchicalSolution {
+        links: solver.links,
+        irradiance,
+        history,
+        rounds,
+        converged,
+        budget_reached: solver.budget_reached,
+        rounds_exhausted,
+        visibility_rays: solver.rays,
+        times,
+        thresholds,
+        hierarchy: solver.hierarchy,
+    }
+}
+
+/// The output mesh of a solved hierarchy: each leaf triangulated (quad → 2
+/// triangles, triangle → 1), vertices welded by exact position within a
+/// patch, each vertex's radiosity the area-weighted mean of the leaves of
+/// its patch having it as a corner. (A discontinuity mesher replaces this.)
+pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
+    let mut mesh = OutputMesh::default();
+    let mut sum: Vec<DVec3> = Vec::new();
+    let mut weight: Vec<f64> = Vec::new();
+    for patch in 0..hierarchy.root_count() {
+        let normal = scene.patches[patch].normal.as_vec3();
+        let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+        let mut stack = vec![hierarchy.root(patch)];
+        while let Some(id) = stack.pop() {
+            let e = hierarchy.get(id);
+            if let Some(kids) = e.children() {
+                // Reverse so children are visited in order.
+                stack.extend(kids.iter().rev());
+                continue;
+            }
+            let corners: Vec<u32> = e
+                .vertices()
+                .iter()
+                .map(|p| {
+                    let key = p.to_array().map(f64::to_bits);
+                    *index.entry(key).or_insert_with(|| {
+                        mesh.positions.push(p.as_vec3());
+                        mesh.normals.push(normal);
+                        mesh.patch.push(patch as u32);
+                        sum.push(DVec3::ZERO);
+                        weight.push(0.0);
+                        (mesh.positions.len() - 1) as u32
+                    })
+                })
+                .collect();
+            for &k in &corners {
+                sum[k as usize] += e.area * e.radiosity;
+                weight[k as usize] += e.area;
+            }
+            mesh.triangles.push([corners[0], corners[1], corners[2]]);
+            if e.shape == Shape::Quad {
+                mesh.triangles.push([corners[0], corners[2], corners[3]]);
+            }
+        }
+    }
+    mesh.radiosity = sum
+        .iter()
+        .zip(&weight)
+        .map(|(s, w)| {
+            if *w > 0.0 {
+                (*s / *w).max(DVec3::ZERO).as_vec3()
+            } else {
+                Vec3::ZERO
+            }
+        })
+        .collect();
+    mesh
+}

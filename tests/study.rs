@@ -1,0 +1,111 @@
+//! `nusselt study` on a tiny scene: the CSV has the expected rows, the
+//! charts are valid SVG and PNG, the reference is cached and reused.
+
+use std::fs;
+use std::path::Path;
+
+use crate::util::nusselt;
+
+#[test]
+fn tiny_study_writes_rows_charts_and_contact_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = r#"{"width": 16, "height": 16, "reference_spp": 16, "render_spp": 1,
+        "runs": [
+          {"label": "jacobi", "method": "jacobi", "element_fractions": [0.4, 0.25]},
+          {"label": "gs hemicube", "method": "gauss-seidel", "kernel": "hemicube", "element_fractions": [0.4]},
+          {"label": "hierarchical", "method": "hierarchical", "accuracy": ["preview"]}
+        ]}"#;
+    fs::write(dir.path().join("study.json"), config).unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/goral-box.gltf");
+    let scene = scene.to_string_lossy().into_owned();
+    let args = ["study", &scene, "-o", "s", "--config", "study.json", "-q"];
+    let out = nusselt(&args, dir.path());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = dir.path().join("s");
+    let csv = fs::read_to_string(s.join("results.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(lines[0].starts_with("label,method,setting,elements"));
+    assert_eq!(lines.len(), 1 + 4, "{csv}");
+    assert!(lines[1].starts_with("\"jacobi\",jacobi,0.4,"));
+    assert!(lines[3].starts_with("\"gs hemicube\",gauss-seidel,0.4,"));
+    for line in &lines[1..] {
+        let rel: f64 = line.split(',').nth(10).unwrap().parse().unwrap();
+        assert!(rel.is_finite() && rel > 0.0 && rel < 1.0, "{line}");
+    }
+    for stem in ["error-time", "error-elements", "links-elements"] {
+        let svg = fs::read_to_string(s.join(format!("{stem}.svg"))).unwrap();
+        roxmltree::Document::parse(&svg).unwrap_or_else(|e| panic!("{stem}.svg: {e}"));
+        assert!(
+            svg.contains("jacobi") && svg.contains("hierarchical"),
+            "{stem}: legend"
+        );
+        let png = image::open(s.join(format!("{stem}.png"))).unwrap();
+        assert!(png.width() > 100 && png.height() > 100);
+    }
+    let sheet = image::open(s.join("contact-sheet.png")).unwrap();
+    assert!(sheet.width() >= 6 * 16 && sheet.height() >= 3 * 16);
+    // The reference is cached: a second run reuses it byte for byte.
+    let before = fs::read(s.join("reference.exr")).unwrap();
+    let out = nusselt(&args, dir.path());
+    assert!(out.status.success());
+    assert_eq!(fs::read(s.join("reference.exr")).unwrap(), before);
+    // A bad configuration is one clean error.
+    fs::write(
+        dir.path().join("bad.json"),
+        r#"{"runs": [{"label": "x", "method": "magic"}]}"#,
+    )
+    .unwrap();
+    let out = nusselt(
+        &["study", &scene, "-o", "t", "--config", "bad.json", "-q"],
+        dir.path(),
+    );
+    crate::util::assert_user_error(&out, "unknown method 'magic'");
+}
+
+/// The radiosity solution and the independent path tracer agree on the
+/// Cornell box. Stated tolerance: image means per channel within 3 % and a
+/// mean relative error under 15 %; the rest is the uniform mesh's
+/// discretisation (h = 0.03 diagonal) and the reference's noise at 256 spp.
+/// (RMSE itself is dominated by the light's edge pixels, where 16 stratified
+/// samples and the reference's random ones cover the light differently.)
+#[test]
+fn cornell_radiosity_agrees_with_the_path_tracer() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
+    let scene = scene.to_string_lossy().into_owned();
+    let size = ["--width", "32", "--height", "32"];
+    let mut solve = vec![
+        "solve",
+        &scene,
+        "-q",
+        "-o",
+        "sol",
+        "--element-size",
+        "0.03",
+        "--spp",
+        "16",
+    ];
+    solve.extend(size);
+    assert!(nusselt(&solve, dir.path()).status.success());
+    let mut reference = vec!["reference", &scene, "-q", "-o", "ref.exr", "--spp", "256"];
+    reference.extend(size);
+    assert!(nusselt(&reference, dir.path()).status.success());
+    let out = nusselt(&["compare", "sol/render.exr", "ref.exr"], dir.path());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for c in ["R", "G", "B"] {
+        let ch = &m["channels"][c];
+        let ratio = ch["mean_test"].as_f64().unwrap() / ch["mean_reference"].as_f64().unwrap();
+        assert!((ratio - 1.0).abs() < 0.03, "{c}: mean ratio {ratio}");
+    }
+    let mre = m["overall"]["mean_relative_error"].as_f64().unwrap();
+    assert!(mre < 0.15, "mean relative error {mre}");
+}
