@@ -351,8 +351,8 @@ pub fn run_study(
             ));
             tiles.push((
                 format!(
-                    "rel. RMSE {:.1} %",
-                    100.0 * o.relative_rmse.unwrap_or(f64::NAN)
+                    "mean rel. err. {:.1} %",
+                    100.0 * o.mean_relative_error.unwrap_or(f64::NAN)
                 ),
                 false_colour(&errors),
             ));
@@ -365,7 +365,8 @@ pub fn run_study(
             "Mean relative error against solve time",
             Axis::log("solve time (s)"),
             Axis::log("mean relative error"),
-            (|r: &StudyRow| (r.solve_seconds, r.mean_relative_error)) as fn(&StudyRow) -> (f64, f64),
+            (|r: &StudyRow| (r.solve_seconds, r.mean_relative_error))
+                as fn(&StudyRow) -> (f64, f64),
         ),
         (
             "error-elements",
