@@ -21,6 +21,11 @@ const METHODS: [ClassicMethod; 4] = [
 /// A closed box (sides `size`) seen from inside, every face emitting
 /// radiance `le` with reflectance `rho`.
 pub fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
+    furnace_box_rgb(size, DVec3::splat(le), rho)
+}
+
+/// [`furnace_box`] with a per-channel emitted radiance.
+pub fn furnace_box_rgb(size: DVec3, le: DVec3, rho: f64) -> Scene {
     let s = size;
     let p = |x: f64, y: f64, z: f64| DVec3::new(x * s.x, y * s.y, z * s.z);
     let quads = [
@@ -39,14 +44,14 @@ pub fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
                 material: 0,
                 surface: k as u32,
                 reflectance: DVec3::splat(rho),
-                emitted_radiance: DVec3::splat(le),
+                emitted_radiance: le,
             });
         }
     }
     let material = Material {
         name: "furnace".into(),
         reflectance: DVec3::splat(rho),
-        emitted_radiance: DVec3::splat(le),
+        emitted_radiance: le,
         double_sided: false,
     };
     let surfaces = (0..6)

@@ -53,40 +53,7 @@ fn view(eye: DVec3, target: DVec3, up: DVec3, fov_deg: f64, side: u32) -> View {
 /// A unit cube seen from inside, every face emitting radiance `le` and
 /// reflecting `rho`.
 fn furnace(le: DVec3, rho: f64) -> Scene {
-    let p = DVec3::new;
-    let quads = [
-        [p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)],
-        [p(0., 1., 0.), p(1., 1., 0.), p(1., 1., 1.), p(0., 1., 1.)],
-        [p(0., 0., 0.), p(1., 0., 0.), p(1., 1., 0.), p(0., 1., 0.)],
-        [p(0., 0., 1.), p(0., 1., 1.), p(1., 1., 1.), p(1., 0., 1.)],
-        [p(0., 0., 0.), p(0., 1., 0.), p(0., 1., 1.), p(0., 0., 1.)],
-        [p(1., 0., 0.), p(1., 0., 1.), p(1., 1., 1.), p(1., 1., 0.)],
-    ];
-    let mut tris = Vec::new();
-    for (k, q) in quads.iter().enumerate() {
-        for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-            tris.push(InputTriangle {
-                positions: t,
-                material: 0,
-                surface: k as u32,
-                reflectance: DVec3::splat(rho),
-                emitted_radiance: le,
-            });
-        }
-    }
-    let material = Material {
-        name: "furnace".into(),
-        reflectance: DVec3::splat(rho),
-        emitted_radiance: le,
-        double_sided: false,
-    };
-    let surfaces = (0..6)
-        .map(|k| Surface {
-            name: format!("face{k}"),
-            node: k,
-        })
-        .collect();
-    Scene::build(tris, vec![material], surfaces, vec![], vec![]).unwrap()
+    crate::classic::furnace_box_rgb(DVec3::ONE, le, rho)
 }
 
 /// Per channel: the image mean, and the standard error of that mean from
