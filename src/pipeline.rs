@@ -247,15 +247,7 @@ fn solve_with_hierarchy(
         "width": view.width,
         "height": view.height,
     });
-    report.exposure = frame_exposure(&frame);
-    report.view = Some(view);
-    report.times.total = secs(start);
-    Ok(SolveRun {
-        mesh: out,
-        frame,
-        snapshots,
-        report,
-    })
+    Ok(finish(report, view, out, frame, snapshots, start))
 }
 
 /// The classic path: uniform mesh, dense matrix, classic solver.
@@ -296,17 +288,7 @@ fn solve_classic(
     report.times.form_factors = secs(t);
 
     let t = Instant::now();
-    let reflectance: Vec<DVec3> = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].reflectance)
-        .collect();
-    let emission: Vec<DVec3> = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].emission)
-        .collect();
-    let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+    let (reflectance, emission, area) = mesh.element_values(scene);
     let system = System {
         matrix: &matrix,
         reflectance: &reflectance,
@@ -410,15 +392,27 @@ fn solve_classic(
         "width": view.width,
         "height": view.height,
     });
+    Ok(finish(report, view, out, frame, snapshots, start))
+}
+
+/// The common end of every solve: exposure, view and total time.
+fn finish(
+    mut report: Report,
+    view: View,
+    mesh: OutputMesh,
+    frame: Frame,
+    snapshots: Vec<(usize, Frame)>,
+    start: Instant,
+) -> SolveRun {
     report.exposure = frame_exposure(&frame);
     report.view = Some(view);
     report.times.total = secs(start);
-    Ok(SolveRun {
-        mesh: out,
+    SolveRun {
+        mesh,
         frame,
         snapshots,
         report,
-    })
+    }
 }
 
 /// The display exposure of a run, chosen from its main render's pixels (a

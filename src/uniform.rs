@@ -100,6 +100,17 @@ impl UniformMesh {
         }
     }
 
+    /// Per element: the reflectance and emitted exitance of its patch, and
+    /// its area — the vectors of the radiosity system on this mesh.
+    pub fn element_values(&self, scene: &Scene) -> (Vec<DVec3>, Vec<DVec3>, Vec<f64>) {
+        let patch = |e: &Element| &scene.patches[e.patch as usize];
+        (
+            self.elements.iter().map(|e| patch(e).reflectance).collect(),
+            self.elements.iter().map(|e| patch(e).emission).collect(),
+            self.elements.iter().map(|e| e.area).collect(),
+        )
+    }
+
     /// The output mesh, with each vertex's radiosity the area-weighted mean of
     /// the elements of its patch that touch it (`element_radiosity` is
     /// indexed like [`Self::elements`]).

@@ -88,18 +88,7 @@ fn exact_matrix(mesh: &UniformMesh) -> FormFactorMatrix {
 }
 
 fn system_vectors(scene: &Scene, mesh: &UniformMesh) -> (Vec<DVec3>, Vec<DVec3>, Vec<f64>) {
-    let rho = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].reflectance)
-        .collect();
-    let e = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].emission)
-        .collect();
-    let a = mesh.elements.iter().map(|e| e.area).collect();
-    (rho, e, a)
+    mesh.element_values(scene)
 }
 
 #[test]

@@ -12,7 +12,6 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-use glam::DVec3;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::pipeline::scene_bvh;
@@ -53,17 +52,7 @@ fn child(scene_path: &str, fraction: f64, method: &str) -> anyhow::Result<()> {
     };
     let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &Progress::hidden())?;
     let ff_time = t.elapsed().as_secs_f64();
-    let rho: Vec<DVec3> = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].reflectance)
-        .collect();
-    let e: Vec<DVec3> = mesh
-        .elements
-        .iter()
-        .map(|e| scene.patches[e.patch as usize].emission)
-        .collect();
-    let area: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+    let (rho, e, area) = mesh.element_values(&scene);
     let system = System {
         matrix: &matrix,
         reflectance: &rho,
