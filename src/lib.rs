@@ -12,6 +12,7 @@
 
 pub mod chart;
 pub mod compare;
+pub mod discontinuity;
 pub mod error;
 pub mod formfactor;
 pub mod frame;
