@@ -13,4 +13,5 @@ mod output;
 mod reference;
 mod scenes;
 mod study;
+mod triangulate;
 mod util;
