@@ -37,7 +37,14 @@
 //!   splitting and refinement calls isolated with `catch_unwind`).
 //!
 //! Tolerances are relative: the weld radius of a patch is `1e-7 ×` the scene
-//! diagonal, reduced to 1 % of the patch's width for thin patches.
+//! diagonal, reduced to 1 % of the patch's width for thin patches; points
+//! within 2 weld radii of an edge go on it, boundary points within 8 of a
+//! corner become that corner.
+//!
+//! Refinement runs inside a frame of four extra vertices around the patch:
+//! rounding leaves boundary points a hair inside the hull, and spade would
+//! keep splitting the hull edges of those slivers. Steiner points outside the
+//! patch are dropped; ones on its edges are shared like any boundary point.
 
 use std::collections::{HashMap, HashSet};
 use std::panic::{AssertUnwindSafe, catch_unwind};
