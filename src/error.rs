@@ -36,6 +36,9 @@ pub enum Error {
     /// any file is touched), e.g. a mesh whose arrays disagree in length.
     #[error("cannot encode {what}: {message}")]
     Encode { what: &'static str, message: String },
+    /// The mesher could not triangulate a patch (names the patch).
+    #[error("meshing failed: {0}")]
+    Mesh(String),
     /// A setting is out of range or inconsistent.
     #[error("invalid setting: {0}")]
     Setting(String),

@@ -34,6 +34,7 @@ pub mod scene;
 pub mod solve;
 pub mod study;
 pub mod surfaces;
+pub mod triangulate;
 pub mod uniform;
 pub mod view;
 pub mod visibility;

@@ -79,3 +79,24 @@ fn seed_corpus_covers_valid_and_broken_inputs() {
         }
     }
 }
+
+/// The `triangulate` fuzz target: its seed corpus and recorded crashes
+/// triangulate without panicking and the result validates.
+#[test]
+fn triangulate_corpus_and_regressions_validate() {
+    let corpus = files_in(&fuzz_dir().join("corpus/triangulate"));
+    assert!(corpus.len() >= 10, "the triangulate seed corpus is missing");
+    let regressions = files_in(&fuzz_dir().join("regressions/triangulate"));
+    let mut failed = Vec::new();
+    for file in corpus.iter().chain(&regressions) {
+        let data = std::fs::read(file).expect("readable corpus file");
+        match catch_unwind(AssertUnwindSafe(|| {
+            nusselt::triangulate::fuzz_triangulate(&data)
+        })) {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => failed.push(format!("{}: {e}", file.display())),
+            Err(_) => failed.push(format!("{}: panicked", file.display())),
+        }
+    }
+    assert!(failed.is_empty(), "triangulation failed on: {failed:?}");
+}

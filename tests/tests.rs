@@ -14,4 +14,5 @@ mod output;
 mod reference;
 mod scenes;
 mod study;
+mod triangulate;
 mod util;
