@@ -31,13 +31,15 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy};
 use crate::links::{
-    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other,
-    split_at_any_visibility,
+    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
+    sharpen, split_at_any_visibility, visibility_error,
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
+use crate::sampling::{pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, Shape};
 use crate::visibility::TriangleBvh;
 
@@ -149,7 +151,7 @@ impl Default for HierarchicalSettings {
         HierarchicalSettings {
             oracle: Oracle::Bf,
             accuracy: Accuracy::default(),
-            visibility_rays: 9,
+            visibility_rays: 32,
             seed: 0,
             tolerance: 1e-5,
             max_iterations: 10_000,
@@ -318,10 +320,104 @@ impl Solver<'_> {
         true
     }
 
+    /// Evaluates the (receiver, source) pairs and refines until every link
+    /// is accepted, shadows included ([`Solver::shadow_splits`]), or the
+    /// budget stops it. Returns the links split.
+    fn settle(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
+        let mut splits = 0;
+        loop {
+            splits += self.settle_links(pending);
+            let (more, moved) = self.shadow_splits();
+            if more.is_empty() {
+                return splits;
+            }
+            splits += moved;
+            pending = more;
+        }
+    }
+
+    /// Receivers crossed by a shadow edge of a whole source patch: for each
+    /// receiver above the minimum area, the shadow errors of its links are
+    /// summed per source patch ([`shadow_error`]); where a sum exceeds the
+    /// threshold, the receiver is split and those of the patch's links
+    /// whose visibility varies over it move to the children. This bounds
+    /// the error of a shadow that the per-link oracle misses because the
+    /// source was split into many small pieces, each link's share below
+    /// the threshold. Returns the child pairs to evaluate and the links
+    /// moved.
+    fn shadow_splits(&mut self) -> (Vec<(ElementId, ElementId)>, u64) {
+        let t = self.thresholds;
+        let h = &self.hierarchy;
+        let scene = self.scene;
+        let eps = match t.oracle {
+            Oracle::Ff => t.ff_eps,
+            Oracle::Bf => t.bf_eps,
+            Oracle::Power => t.power_eps,
+        };
+        // Per receiver, the source patches whose links move down (sorted).
+        let marked: Vec<Vec<u32>> = self
+            .links
+            .par_iter()
+            .enumerate()
+            .with_min_len(64)
+            .map(|(r, ls)| {
+                let re = &h.elements[r];
+                if !(re.area > t.min_area) || ls.iter().all(|l| l.spread() == 0.0) {
+                    return Vec::new();
+                }
+                let rho = scene.patches[re.patch as usize].reflectance;
+                let mut per_patch: Vec<(u32, f64)> = ls
+                    .iter()
+                    .filter(|l| l.spread() > 0.0)
+                    .map(|l| {
+                        let s = h.get(l.source);
+                        (s.patch, shadow_error(&t, l, re.area, rho, s.radiosity))
+                    })
+                    .collect();
+                per_patch.sort_by_key(|(p, _)| *p);
+                let mut out = Vec::new();
+                for group in per_patch.chunk_by(|a, b| a.0 == b.0) {
+                    if group.iter().map(|(_, e)| e).sum::<f64>() > eps {
+                        out.push(group[0].0);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut pending = Vec::new();
+        let mut moved = 0;
+        for (r, patches) in marked.into_iter().enumerate() {
+            if patches.is_empty() {
+                continue;
+            }
+            let own = std::mem::take(&mut self.links[r]);
+            let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
+                l.spread() > 0.0
+                    && patches
+                        .binary_search(&self.hierarchy.get(l.source).patch)
+                        .is_ok()
+            });
+            self.links[r] = keep;
+            let extra = 3 * down.len() as u64;
+            if self.over_budget(extra) {
+                self.budget_reached = true;
+                self.links[r].extend(down);
+                continue;
+            }
+            self.n_links += extra;
+            moved += down.len() as u64;
+            for child in self.hierarchy.split(ElementId(r as u32)) {
+                pending.extend(down.iter().map(|l| (child, l.source)));
+            }
+        }
+        self.links.resize_with(self.hierarchy.len(), Vec::new);
+        (pending, moved)
+    }
+
     /// Evaluates the (receiver, source) pairs in parallel, then keeps the
     /// accepted links, splits for the others and repeats until every new
     /// link is accepted (or the budget stops it). Returns the links split.
-    fn settle(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
+    fn settle_links(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
         let mut splits = 0;
         while !pending.is_empty() {
             let rays = self.settings.visibility_rays;
@@ -334,9 +430,14 @@ impl Solver<'_> {
                 .map(|&(r, s)| {
                     let (re, se) = (&elements[r.index()], &elements[s.index()]);
                     let rho = scene.patches[re.patch as usize].reflectance;
-                    let skip = |l: &Link| split_at_any_visibility(t, l, re, se, rho);
-                    let (link, cast) = evaluate_link(scene, elements, r, s, bvh, rays, seed, skip);
-                    let d = decide(t, &link, re, se, rho);
+                    let state = self.hierarchy.source_state(s);
+                    let skip = |l: &Link| split_at_any_visibility(t, l, re, se, &state, rho);
+                    let (mut link, cast) =
+                        evaluate_link(scene, elements, r, s, bvh, rays, seed, skip);
+                    let d = decide(t, &link, re, se, &state, rho);
+                    if d == Decision::Accept {
+                        sharpen(&mut link, re, se, scene.patches[se.patch as usize].normal);
+                    }
                     (link, cast, d)
                 })
                 .collect();
@@ -362,6 +463,9 @@ impl Solver<'_> {
                         |_| false,
                     );
                     link = l;
+                    let (h, source) = (&self.hierarchy, link.source);
+                    let n_s = self.scene.patches[h.get(source).patch as usize].normal;
+                    sharpen(&mut link, h.get(r), h.get(source), n_s);
                     self.rays += c;
                 }
                 if link.coupling() > 0.0 {
@@ -440,7 +544,6 @@ impl Solver<'_> {
             return 0;
         }
         let h = &self.hierarchy;
-        let rays = self.thresholds.rays.max(1) as f64;
         let mut marked = Vec::new();
         for e in &h.elements {
             let Some(kids) = e.children() else { continue };
@@ -464,8 +567,7 @@ impl Solver<'_> {
             let own = std::mem::take(&mut self.links[k.index()]);
             let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
                 let b = (rho * self.hierarchy.get(l.source).radiosity).max_element();
-                let v = l.visibility as f64;
-                let v_err = if v > 0.0 && v < 1.0 { 1.0 } else { 1.0 / rays };
+                let v_err = visibility_error(&self.thresholds, l);
                 b * (l.error as f64 + v_err * l.form_factor as f64) > 0.25 * tol
             });
             self.links[k.index()] = keep;
@@ -533,7 +635,7 @@ impl Solver<'_> {
                 let re = &h.elements[r];
                 let rho = scene.patches[re.patch as usize].reflectance;
                 ls.iter()
-                    .map(|l| decide(&t, l, re, h.get(l.source), rho))
+                    .map(|l| decide(&t, l, re, h.get(l.source), &h.source_state(l.source), rho))
                     .collect()
             })
             .collect()
@@ -700,11 +802,133 @@ pub fn solve_hierarchical(
     }
 }
 
-/// The output mesh of a solved hierarchy: each leaf triangulated (quad → 2
-/// triangles, triangle → 1), vertices welded by exact position within a
-/// patch, each vertex's radiosity the area-weighted mean of the leaves of
-/// its patch having it as a corner. (A discontinuity mesher replaces this.)
+/// Visibility rays per partly visible link in [`point_radiosity`].
+pub const POINT_RAYS: usize = 16;
+
+/// Radiosity at point `x` of leaf `leaf` by a final gather over the links
+/// of the leaf and its ancestors: each link's source contributes its exact
+/// point-to-polygon form factor from `x` (not the link's mean over its
+/// receiver) times its radiosity, and, for a partly visible link, the
+/// kernel-weighted visible fraction of [`POINT_RAYS`] rays from `x`
+/// (seeded by `seed`, the leaf and the source: deterministic). `x` is
+/// moved a millionth of the way toward the leaf's centroid first, so that
+/// a point on an edge takes its value from inside the leaf.
+pub fn point_radiosity(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    solution: &HierarchicalSolution,
+    leaf: ElementId,
+    x: DVec3,
+    seed: u64,
+) -> DVec3 {
+    let h = &solution.hierarchy;
+    let e = h.get(leaf);
+    let patch = &scene.patches[e.patch as usize];
+    let x = x + 1e-6 * (e.centroid() - x);
+    let mut irradiance = DVec3::ZERO;
+    let mut id = Some(leaf);
+    while let Some(k) = id {
+        for l in &solution.links[k.index()] {
+            let s = h.get(l.source);
+            let n_s = scene.patches[s.patch as usize].normal;
+            if !((x - s.corners[0]).dot(n_s) > 0.0) {
+                continue;
+            }
+            let f = form_factor_point_polygon(x, patch.normal, s.vertices());
+            if !(f > 0.0) {
+                continue;
+            }
+            let v = if l.partly_visible() {
+                let mut rng = pair_stream(seed, leaf.0, l.source.0);
+                let (mut seen, mut total) = (0.0, 0.0);
+                for t in stratified(POINT_RAYS, &mut rng) {
+                    let y = point_in_polygon(s.vertices(), t);
+                    let d = y - x;
+                    let w = d.dot(patch.normal) * -d.dot(n_s) / d.length_squared().powi(2);
+                    if !(w > 0.0) || !w.is_finite() {
+                        continue;
+                    }
+                    total += w;
+                    if bvh.visible(x, y) {
+                        seen += w;
+                    }
+                }
+                if total > 0.0 {
+                    seen / total
+                } else {
+                    l.visibility()
+                }
+            } else {
+                l.visibility()
+            };
+            irradiance += f * v * s.radiosity;
+        }
+        id = h.get(k).parent();
+    }
+    patch.emission + patch.reflectance * irradiance
+}
+
+/// How the output mesh's vertex values are made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VertexValues {
+    /// Area-weighted mean of the leaves sharing the vertex (cheap; blurs
+    /// and biases next to edges, where leaves are large).
+    LeafMean,
+    /// [`point_radiosity`] at the vertex, from the first leaf (in mesh
+    /// order) that has it as a corner.
+    PointGather { seed: u64 },
+}
+
+/// The output mesh of a solved hierarchy, each vertex's radiosity made as
+/// `values` says.
+pub fn output_mesh(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    solution: &HierarchicalSolution,
+    values: VertexValues,
+) -> OutputMesh {
+    let (mut mesh, incidences) = leaf_mesh(scene, &solution.hierarchy);
+    let seed = match values {
+        VertexValues::LeafMean => return mesh,
+        VertexValues::PointGather { seed } => seed,
+    };
+    // One leaf per vertex (the first in mesh order) holds it.
+    let mut holder: Vec<Option<ElementId>> = vec![None; mesh.vertex_count()];
+    for &(v, leaf) in &incidences {
+        holder[v as usize].get_or_insert(leaf);
+    }
+    let values: Vec<Option<DVec3>> = holder
+        .par_iter()
+        .enumerate()
+        .with_min_len(16)
+        .map(|(v, leaf)| {
+            leaf.map(|leaf| {
+                let x = mesh.positions[v].as_dvec3();
+                point_radiosity(scene, bvh, solution, leaf, x, seed)
+            })
+        })
+        .collect();
+    for (b, value) in mesh.radiosity.iter_mut().zip(values) {
+        if let Some(value) = value {
+            *b = value.max(DVec3::ZERO).as_vec3();
+        }
+    }
+    mesh
+}
+
+/// The output mesh of a solved hierarchy with leaf-mean vertex values
+/// ([`VertexValues::LeafMean`]).
 pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
+    leaf_mesh(scene, hierarchy).0
+}
+
+/// Each leaf triangulated (quad → 2 triangles, triangle → 1), vertices
+/// welded by exact position within a patch, each vertex's radiosity the
+/// area-weighted mean of the leaves of its patch having it as a corner;
+/// and the (vertex, leaf) incidences, in mesh order. (A discontinuity
+/// mesher replaces this.)
+fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, ElementId)>) {
+    let mut incidences = Vec::new();
     let mut mesh = OutputMesh::default();
     let mut sum: Vec<DVec3> = Vec::new();
     let mut weight: Vec<f64> = Vec::new();
@@ -737,6 +961,7 @@ pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
             for &k in &corners {
                 sum[k as usize] += e.area * e.radiosity;
                 weight[k as usize] += e.area;
+                incidences.push((k, id));
             }
             mesh.triangles.push([corners[0], corners[1], corners[2]]);
             if e.shape == Shape::Quad {
@@ -755,5 +980,5 @@ pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
             }
         })
         .collect();
-    mesh
+    (mesh, incidences)
 }

@@ -231,6 +231,22 @@ impl Hierarchy {
         [first, first + 1, first + 2, first + 3].map(ElementId)
     }
 
+    /// What a link's oracle needs of source `id`: its radiosity and how
+    /// much its children's differ.
+    pub fn source_state(&self, id: ElementId) -> crate::links::SourceState {
+        let e = self.get(id);
+        let unevenness = e.children().map_or(DVec3::ZERO, |kids| {
+            let b = kids.map(|k| self.get(k).radiosity);
+            let lo = b.iter().fold(DVec3::INFINITY, |a, x| a.min(*x));
+            let hi = b.iter().fold(DVec3::NEG_INFINITY, |a, x| a.max(*x));
+            hi - lo
+        });
+        crate::links::SourceState {
+            radiosity: e.radiosity,
+            unevenness,
+        }
+    }
+
     /// Bytes held by the arena (capacity included).
     pub fn memory_bytes(&self) -> usize {
         self.elements.capacity() * std::mem::size_of::<Element>()

@@ -171,10 +171,9 @@ struct SolveArgs {
     /// Output folder (default: out/<scene stem>).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Solver: a classic solver on a uniform mesh with a dense matrix, or
-    /// hierarchical (adaptive elements and links; experimental: it still
-    /// leaks light where objects stand on the floor).
-    #[arg(long, value_enum, default_value_t = Method::Jacobi)]
+    /// Solver: hierarchical (adaptive elements and links, the default), or
+    /// a classic solver on a uniform mesh with a dense matrix.
+    #[arg(long, value_enum, default_value_t = Method::Hierarchical)]
     method: Method,
     /// Classic methods: largest element edge in metres (default: 1/25 of the
     /// scene diagonal). Ignored by hierarchical, which sizes its elements
@@ -368,7 +367,7 @@ struct KernelArgs {
     kernel: KernelName,
     /// Visibility rays per element pair (point-polygon; default 4), per
     /// quadrature point (polygon-polygon; default 4) or per link
-    /// (hierarchical; default 9).
+    /// (hierarchical; default 32).
     #[arg(long)]
     visibility_rays: Option<usize>,
     /// Point pairs per element pair (sampling; default 16 for `solve`,

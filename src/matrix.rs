@@ -240,17 +240,27 @@ fn row_by_pairs(
         if s.patch == r.patch {
             continue;
         }
-        // Cheap exact cull: no part of the source in front of the receiver.
-        if form_factor_point_polygon(r.centroid, r.normal, &s.corners) <= 0.0
+        // Cheap exact cull: no part of the source in front of the receiver,
+        // or no part of the receiver in front of the source.
+        if (form_factor_point_polygon(r.centroid, r.normal, &s.corners) <= 0.0
             && s.corners
                 .iter()
-                .all(|p| (*p - r.centroid).dot(r.normal) <= 0.0)
+                .all(|p| (*p - r.centroid).dot(r.normal) <= 0.0))
+            || r.corners
+                .iter()
+                .all(|p| (*p - s.centroid).dot(s.normal) <= 0.0)
         {
             continue;
         }
+        // The contour integral does not know which side of the source
+        // emits: a receiver point behind the source's plane gets nothing.
+        let facing = |x: DVec3| (x - s.centroid).dot(s.normal) > 0.0;
         let mut rng = pair_stream(settings.seed, i as u32, j as u32);
         let f = match settings.kernel {
             Kernel::PointPolygon => {
+                if !facing(r.centroid) {
+                    continue;
+                }
                 let f = form_factor_point_polygon(r.centroid, r.normal, &s.corners);
                 if f <= 0.0 {
                     continue;
@@ -284,6 +294,9 @@ fn row_by_pairs(
                     settings.quadrature_tolerance,
                     QUADRATURE_BUDGET,
                     |x| {
+                        if !facing(x) {
+                            return 0.0;
+                        }
                         cast.fetch_add(rays as u64, Ordering::Relaxed);
                         targets.iter().filter(|y| bvh.visible(x, **y)).count() as f64 / rays as f64
                     },

@@ -16,7 +16,7 @@ use serde_json::json;
 
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::hierarchical::{HierarchicalSettings, leaf_output_mesh, solve_hierarchical};
+use crate::hierarchical::{HierarchicalSettings, VertexValues, output_mesh, solve_hierarchical};
 use crate::matrix::{FormFactorMatrix, MatrixSettings};
 use crate::mesh::OutputMesh;
 use crate::output::{self, OutputSet};
@@ -71,7 +71,7 @@ pub struct SolveSettings {
 impl Default for SolveSettings {
     fn default() -> Self {
         SolveSettings {
-            method: Method::Classic(ClassicMethod::Jacobi),
+            method: Method::Hierarchical,
             hierarchical: HierarchicalSettings::default(),
             element_size: None,
             matrix: MatrixSettings::default(),
@@ -206,7 +206,12 @@ fn solve_with_hierarchy(
     }
 
     let t = Instant::now();
-    let out = leaf_output_mesh(scene, h);
+    let out = output_mesh(
+        scene,
+        &bvh,
+        &solution,
+        VertexValues::PointGather { seed: hs.seed },
+    );
     report.times.output_mesh = secs(t);
 
     let t = Instant::now();

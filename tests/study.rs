@@ -66,46 +66,49 @@ fn tiny_study_writes_rows_charts_and_contact_sheet() {
     crate::util::assert_user_error(&out, "unknown method 'magic'");
 }
 
-/// The radiosity solution and the independent path tracer agree on the
-/// Cornell box. Stated tolerance: image means per channel within 3 % and a
-/// mean relative error under 15 %; the rest is the uniform mesh's
-/// discretisation (h = 0.03 diagonal) and the reference's noise at 256 spp.
-/// (RMSE itself is dominated by the light's edge pixels, where 16 stratified
-/// samples and the reference's random ones cover the light differently.)
+/// The radiosity solutions and the independent path tracer agree on the
+/// Cornell box. Stated tolerances: image means per channel within 3 % for
+/// Jacobi on a uniform mesh (h = 0.03 diagonal) and within 5 % for the
+/// default hierarchical solver (measured: 2.4–3.5 % darker; its links hand
+/// each receiver the mean over it, which misplaces light next to edges),
+/// and a mean relative error under 15 %; the rest is discretisation and
+/// the reference's noise at 256 spp. (RMSE itself is dominated by the
+/// light's edge pixels, where 16 stratified samples and the reference's
+/// random ones cover the light differently.)
 #[test]
 fn cornell_radiosity_agrees_with_the_path_tracer() {
     let dir = tempfile::tempdir().unwrap();
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
     let scene = scene.to_string_lossy().into_owned();
     let size = ["--width", "32", "--height", "32"];
-    let mut solve = vec![
-        "solve",
-        &scene,
-        "-q",
-        "-o",
-        "sol",
-        "--element-size",
-        "0.03",
-        "--spp",
-        "16",
-    ];
-    solve.extend(size);
-    assert!(nusselt(&solve, dir.path()).status.success());
     let mut reference = vec!["reference", &scene, "-q", "-o", "ref.exr", "--spp", "256"];
     reference.extend(size);
     assert!(nusselt(&reference, dir.path()).status.success());
-    let out = nusselt(&["compare", "sol/render.exr", "ref.exr"], dir.path());
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    for c in ["R", "G", "B"] {
-        let ch = &m["channels"][c];
-        let ratio = ch["mean_test"].as_f64().unwrap() / ch["mean_reference"].as_f64().unwrap();
-        assert!((ratio - 1.0).abs() < 0.03, "{c}: mean ratio {ratio}");
+    let configs: [(&[&str], f64); 2] = [
+        (&["--method", "jacobi", "--element-size", "0.03"], 0.03),
+        (&["--method", "hierarchical"], 0.05),
+    ];
+    for (method, tolerance) in configs {
+        let mut solve = vec!["solve", &scene, "-q", "-o", "sol", "--spp", "16"];
+        solve.extend(method);
+        solve.extend(size);
+        assert!(nusselt(&solve, dir.path()).status.success());
+        let out = nusselt(&["compare", "sol/render.exr", "ref.exr"], dir.path());
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        for c in ["R", "G", "B"] {
+            let ch = &m["channels"][c];
+            let ratio = ch["mean_test"].as_f64().unwrap() / ch["mean_reference"].as_f64().unwrap();
+            assert!(
+                (ratio - 1.0).abs() < tolerance,
+                "{method:?} {c}: mean ratio {ratio}"
+            );
+        }
+        let mre = m["overall"]["mean_relative_error"].as_f64().unwrap();
+        assert!(mre < 0.15, "{method:?}: mean relative error {mre}");
     }
-    let mre = m["overall"]["mean_relative_error"].as_f64().unwrap();
-    assert!(mre < 0.15, "mean relative error {mre}");
 }
