@@ -35,7 +35,7 @@ use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy};
 use crate::links::{
     Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
-    sharpen, split_at_any_visibility, visibility_error,
+    sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
@@ -169,7 +169,8 @@ pub struct Iteration {
     pub seconds: f64,
 }
 
-/// What one refinement round did.
+/// What one refinement round did: what it split, the sizes after it, and
+/// the solve that followed (also the `rounds` of `report.json`).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Round {
     pub round: usize,
@@ -840,19 +841,10 @@ pub fn point_radiosity(
             }
             let v = if l.partly_visible() {
                 let mut rng = pair_stream(seed, leaf.0, l.source.0);
-                let (mut seen, mut total) = (0.0, 0.0);
-                for t in stratified(POINT_RAYS, &mut rng) {
-                    let y = point_in_polygon(s.vertices(), t);
-                    let d = y - x;
-                    let w = d.dot(patch.normal) * -d.dot(n_s) / d.length_squared().powi(2);
-                    if !(w > 0.0) || !w.is_finite() {
-                        continue;
-                    }
-                    total += w;
-                    if bvh.visible(x, y) {
-                        seen += w;
-                    }
-                }
+                let targets = stratified(POINT_RAYS, &mut rng)
+                    .into_iter()
+                    .map(|t| (x, point_in_polygon(s.vertices(), t)));
+                let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
                 if total > 0.0 {
                     seen / total
                 } else {

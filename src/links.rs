@@ -119,6 +119,31 @@ pub fn faces_each_other(
     front(source, receiver[0], n_r) && front(receiver, source[0], n_s)
 }
 
+/// Sums over the rays (x on the receiver, y on the source) of the kernel
+/// weight cos θ_x cos θ_y / r², of all rays with both ends in front of the
+/// other's plane and of the unblocked ones: their ratio is the
+/// kernel-weighted visible fraction.
+pub fn weighted_visibility(
+    bvh: &TriangleBvh,
+    rays: impl Iterator<Item = (DVec3, DVec3)>,
+    n_r: DVec3,
+    n_s: DVec3,
+) -> (f64, f64) {
+    let (mut total, mut seen) = (0.0, 0.0);
+    for (x, y) in rays {
+        let d = y - x;
+        let kernel = d.dot(n_r) * -d.dot(n_s) / d.length_squared().powi(2);
+        if !(kernel > 0.0) || !kernel.is_finite() {
+            continue;
+        }
+        total += kernel;
+        if bvh.visible(x, y) {
+            seen += kernel;
+        }
+    }
+    (total, seen)
+}
+
 /// Evaluates the link (receiver `r_id`, source `s_id`): its form factor
 /// and error, then its visibility, unless `skip_visibility` says the
 /// unoccluded link already decides (its visibility stays 0). Visibility
@@ -188,26 +213,13 @@ pub fn evaluate_link(
         .collect();
     let quarters = split_corners(r.shape, &r.corners);
     let n = r.vertices().len();
-    // Per quarter: the kernel weight cos θ_x cos θ_y / r² of the rays that
-    // count (both ends in front of the other element's plane), and of
-    // those unblocked: V is the kernel-weighted visible fraction, which
-    // is what scales the unoccluded form factor.
-    let mut weight = [0.0f64; 4];
-    let mut seen = [0.0f64; 4];
-    for (k, quarter) in quarters.iter().enumerate() {
-        for (a, &y) in from.iter().zip(&targets) {
-            let x = point_in_polygon(&quarter[..n], *a);
-            let d = y - x;
-            let kernel = d.dot(n_r) * -d.dot(n_s) / d.length_squared().powi(2);
-            if !(kernel > 0.0) || !kernel.is_finite() {
-                continue;
-            }
-            weight[k] += kernel;
-            if bvh.visible(x, y) {
-                seen[k] += kernel;
-            }
-        }
-    }
+    // Per quarter, the kernel-weighted visibility sums: V (their ratio
+    // over all quarters) is what scales the unoccluded form factor.
+    let sums = quarters.map(|quarter| {
+        let from = from.iter().map(|a| point_in_polygon(&quarter[..n], *a));
+        weighted_visibility(bvh, from.zip(targets.iter().copied()), n_r, n_s)
+    });
+    let (weight, seen) = (sums.map(|q| q.0), sums.map(|q| q.1));
     let counted: f64 = weight.iter().sum();
     // No ray counted: the kernel's support was missed by the samples; the
     // form factor is then tiny and is kept whole.

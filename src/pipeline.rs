@@ -22,7 +22,7 @@ use crate::mesh::OutputMesh;
 use crate::output::{self, OutputSet};
 use crate::progress::Progress;
 use crate::render::{RenderSettings, render};
-use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report, RoundEntry};
+use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report};
 use crate::scene::Scene;
 use crate::solve::{ClassicMethod, Convergence, System};
 use crate::uniform::UniformMesh;
@@ -171,20 +171,7 @@ fn solve_with_hierarchy(
                 seconds: h.seconds,
             })
             .collect(),
-        rounds: solution
-            .rounds
-            .iter()
-            .map(|r| RoundEntry {
-                round: r.round,
-                split_links: r.split_links,
-                gradient_splits: r.gradient_splits,
-                elements: r.elements,
-                leaves: r.leaves,
-                links: r.links,
-                iterations: r.iterations,
-                seconds: r.seconds,
-            })
-            .collect(),
+        rounds: solution.rounds.clone(),
     };
     if !solution.converged {
         report.warnings.push(format!(

@@ -58,20 +58,6 @@ pub struct HistoryEntry {
     pub seconds: f64,
 }
 
-/// One refinement round of the hierarchical solver: what it split, the
-/// sizes after it, and the solve that followed.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct RoundEntry {
-    pub round: usize,
-    pub split_links: u64,
-    pub gradient_splits: u64,
-    pub elements: usize,
-    pub leaves: usize,
-    pub links: u64,
-    pub iterations: usize,
-    pub seconds: f64,
-}
-
 /// How the solve ended.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ConvergenceReport {
@@ -81,7 +67,7 @@ pub struct ConvergenceReport {
     pub history: Vec<HistoryEntry>,
     /// Hierarchical: one entry per refinement round.
     #[serde(default)]
-    pub rounds: Vec<RoundEntry>,
+    pub rounds: Vec<crate::hierarchical::Round>,
 }
 
 /// Energy balance, W per channel.

@@ -8,6 +8,10 @@
 //! runs in a child process of its own so that its peak resident memory
 //! (Linux `VmHWM`) is its own. Prints a Markdown table.
 
+#[path = "bench_common.rs"]
+mod bench_common;
+use bench_common::peak_rss_mib;
+
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
@@ -25,16 +29,6 @@ const METHODS: [(&str, ClassicMethod); 4] = [
     ("gauss-seidel", ClassicMethod::GaussSeidel),
     ("shooting", ClassicMethod::Shooting),
 ];
-
-fn peak_rss_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0)
-}
 
 /// One configuration, in this (child) process: prints one table row.
 fn child(scene_path: &str, fraction: f64, method: &str) -> anyhow::Result<()> {

@@ -16,6 +16,10 @@
 //! peak resident memory (Linux `VmHWM`) is its own; the child reports its
 //! row as one JSON line. Prints a Markdown table, then the exponents.
 
+#[path = "bench_common.rs"]
+mod bench_common;
+use bench_common::peak_rss_mib;
+
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
@@ -57,16 +61,6 @@ struct Row {
     cut_short: bool,
     bytes_per_link: f64,
     peak_mib: f64,
-}
-
-fn peak_rss_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
 /// A preset by its command-line name (`preview`, `default`, `high`, …),
