@@ -268,9 +268,10 @@ fn radiance(doc: &gltf::Document, m: usize) -> DVec3 {
     DVec3::from(mat.emissive_factor().map(|c| f64::from(c * s)))
 }
 
-const FILES: [&str; 4] = [
+const FILES: [&str; 5] = [
     "cornell-box.gltf",
     "goral-box.gltf",
+    "penumbra.gltf",
     "three-rooms.gltf",
     "two-squares.gltf",
 ];
@@ -529,6 +530,44 @@ fn two_squares_face_each_other() {
     };
     assert_eq!(hit(0.05), Some(("receiver".to_owned(), true)));
     assert_eq!(hit(0.95), Some(("emitter".to_owned(), true)));
+}
+
+#[test]
+fn penumbra_squares_are_stacked_as_documented() {
+    let file = "penumbra.gltf";
+    let Loaded { doc, tris, .. } = load(file);
+    assert_eq!(tris.len(), 6);
+    assert_facing(file, &tris, "floor", DVec3::Y);
+    assert_facing(file, &tris, "occluder", DVec3::Y);
+    assert_facing(file, &tris, "emitter", DVec3::NEG_Y);
+    // (node, height, x range, z range)
+    for (name, y, x, z) in [
+        ("floor", 0.0, [-2.5, 2.5], [-2.5, 2.5]),
+        ("occluder", 1.0, [-0.5, 0.5], [-0.5, 0.5]),
+        ("emitter", 2.0, [-0.2, 0.8], [-0.35, 0.65]),
+    ] {
+        let ts = node_tris(&tris, name);
+        let area = (x[1] - x[0]) * (z[1] - z[0]);
+        assert!((ts.iter().map(|t| t.area()).sum::<f64>() - area).abs() < 1e-6);
+        for p in ts.iter().flat_map(|t| t.p) {
+            assert!((p.y - y).abs() < 1e-6, "{name}");
+            assert!((x[0] - 1e-6..=x[1] + 1e-6).contains(&p.x), "{name}");
+            assert!((z[0] - 1e-6..=z[1] + 1e-6).contains(&p.z), "{name}");
+        }
+    }
+    // Only the emitter emits, and it is black.
+    for t in &tris {
+        let emits = radiance(&doc, t.material).max_element() > 0.0;
+        assert_eq!(emits, t.node == "emitter", "{}", t.node);
+    }
+    let emitter = node_tris(&tris, "emitter")[0].material;
+    let base = doc
+        .materials()
+        .nth(emitter)
+        .unwrap()
+        .pbr_metallic_roughness()
+        .base_color_factor();
+    assert_eq!(&base[..3], &[0.0, 0.0, 0.0]);
 }
 
 #[test]

@@ -11,6 +11,7 @@ mod fuzz_corpus;
 mod hierarchical;
 mod loader;
 mod output;
+mod penumbra;
 mod reference;
 mod scenes;
 mod study;

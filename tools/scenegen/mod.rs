@@ -1,8 +1,8 @@
 //! The bundled-scene generator behind `cargo run --example gen-scenes`.
 //!
-//! Owns the scene definitions (`cornell`, `goral`, `two_squares`,
-//! `interior`), their encoding to glTF (`encode`) and the scenes' README
-//! (`readme`). Invariant: generation is a pure function of this code, so the
+//! Owns the scene definitions (`cornell`, `goral`, `penumbra`,
+//! `two_squares`, `interior`), their encoding to glTF (`encode`) and the
+//! scenes' README (`readme`). Invariant: generation is a pure function of this code, so the
 //! files in `scenes/` are byte-identical on every run; the test
 //! `scenes::bundled_scenes_are_up_to_date` regenerates them and compares.
 
@@ -12,6 +12,7 @@ pub mod goral;
 pub mod interior;
 pub mod lattice;
 pub mod model;
+pub mod penumbra;
 pub mod readme;
 pub mod shapes;
 pub mod two_squares;
@@ -27,6 +28,7 @@ pub fn scenes() -> Vec<SceneDef> {
     vec![
         cornell::scene(),
         goral::scene(),
+        penumbra::scene(),
         interior::scene(),
         two_squares::scene(),
     ]
