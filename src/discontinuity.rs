@@ -115,7 +115,7 @@ pub struct Segment {
 }
 
 /// Knobs of [`discontinuity_segments`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct DiscontinuitySettings {
     /// A luminaire is traced when its power is at least this fraction of the
     /// strongest luminaire's.

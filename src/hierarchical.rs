@@ -31,6 +31,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::discontinuity::Segment;
 use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy};
 use crate::links::{
@@ -263,7 +264,7 @@ impl HierarchicalSolution {
 
 /// Mean emitted exitance Φ / A_total (largest channel), and the largest
 /// patch emitted power: the scales of the relative thresholds.
-fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
+pub(crate) fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
     let area = scene.total_area();
     let exitance = scene.emitted_power().max_element() / area;
     let largest = scene
@@ -510,6 +511,57 @@ impl Solver<'_> {
         self.settle(pairs)
     }
 
+    /// Splits every element crossed by a discontinuity segment of its patch
+    /// (`guide[patch]`) while its area exceeds four times the minimum
+    /// element area, level by level from the roots. The split element's
+    /// links that may carry a shadow edge (partly visible, or with a
+    /// visibility spread) move to its children and are settled by the
+    /// oracle, which may refine them further. Returns the links moved.
+    fn follow_discontinuities(&mut self, guide: &[Vec<Segment>]) -> u64 {
+        let bound = 4.0 * self.thresholds.min_area;
+        let tol = 1e-9 * self.scene.diagonal();
+        let mut frontier: Vec<ElementId> = (0..self.hierarchy.root_count())
+            .filter(|&p| guide.get(p).is_some_and(|s| !s.is_empty()))
+            .map(|p| self.hierarchy.root(p))
+            .collect();
+        let mut moved = 0;
+        while !frontier.is_empty() {
+            let mut next = Vec::new();
+            let mut pending = Vec::new();
+            for id in frontier {
+                let e = self.hierarchy.get(id);
+                let normal = self.scene.patches[e.patch as usize].normal;
+                let crossed = guide[e.patch as usize]
+                    .iter()
+                    .any(|s| segment_crosses(e.vertices(), normal, s.a, s.b, tol));
+                if !(e.area > bound) || !crossed {
+                    continue;
+                }
+                let own = std::mem::take(&mut self.links[id.index()]);
+                let (down, keep): (Vec<Link>, Vec<Link>) = own
+                    .into_iter()
+                    .partition(|l| l.partly_visible() || l.spread() > 0.0);
+                self.links[id.index()] = keep;
+                let extra = 3 * down.len() as u64;
+                if self.over_budget(extra) {
+                    self.budget_reached = true;
+                    self.links[id.index()].extend(down);
+                    continue;
+                }
+                self.n_links += extra;
+                moved += down.len() as u64;
+                for child in self.hierarchy.split(id) {
+                    pending.extend(down.iter().map(|l| (child, l.source)));
+                    next.push(child);
+                }
+            }
+            self.links.resize_with(self.hierarchy.len(), Vec::new);
+            moved += self.settle(pending);
+            frontier = next;
+        }
+        moved
+    }
+
     /// Re-runs the oracle on every link with the current radiosities and
     /// refines those it rejects. Returns the links split.
     fn refine(&mut self) -> u64 {
@@ -708,6 +760,22 @@ pub fn solve_hierarchical(
     settings: &HierarchicalSettings,
     progress: &Progress,
 ) -> HierarchicalSolution {
+    solve_hierarchical_guided(scene, bvh, settings, &[], progress)
+}
+
+/// [`solve_hierarchical`] with the discontinuity segments of each patch
+/// (indexed by patch; shorter or empty means none) as a guide: after the
+/// initial linking, elements crossed by a segment are split down to four
+/// times the minimum element area and their partly visible links move to
+/// the children ([`Solver::follow_discontinuities`]), so the hierarchy
+/// resolves shadows along the segments and not elsewhere.
+pub fn solve_hierarchical_guided(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    settings: &HierarchicalSettings,
+    guide: &[Vec<Segment>],
+    progress: &Progress,
+) -> HierarchicalSolution {
     let start = Instant::now();
     let acc = &settings.accuracy;
     let (exitance, largest_power, area) = scene_scales(scene);
@@ -736,13 +804,16 @@ pub fn solve_hierarchical(
     let t = Instant::now();
     let first_splits = solver.initial_links();
     times.linking = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let guided_splits = solver.follow_discontinuities(guide);
+    times.refinement += t.elapsed().as_secs_f64();
 
     let mut irradiance = vec![DVec3::ZERO; solver.hierarchy.len()];
     let mut history = Vec::new();
     let mut rounds = Vec::new();
     let mut converged = false;
     let mut rounds_exhausted = false;
-    let mut split_links = first_splits;
+    let mut split_links = first_splits + guided_splits;
     let mut gradient_splits = 0;
     let mut round_start = Instant::now();
     let max_rounds = acc.max_rounds.max(1);
@@ -803,17 +874,77 @@ pub fn solve_hierarchical(
     }
 }
 
+/// True when segment `ab` (in the plane of the convex polygon `vertices`,
+/// counter-clockwise about `normal`) passes through the polygon's interior
+/// by more than `tol`: Cyrus–Beck clipping against the edges' inward
+/// normals.
+fn segment_crosses(vertices: &[DVec3], normal: DVec3, a: DVec3, b: DVec3, tol: f64) -> bool {
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    let d = b - a;
+    for (i, &p) in vertices.iter().enumerate() {
+        let q = vertices[(i + 1) % vertices.len()];
+        let edge = q - p;
+        let len = edge.length();
+        if !(len > 0.0) {
+            continue;
+        }
+        // Inward unit normal of the edge, in the plane.
+        let m = normal.cross(edge) / len;
+        // Inside by more than tol: (a + t d - p)·m > tol.
+        let num = (a - p).dot(m) - tol;
+        let den = d.dot(m);
+        if den.abs() < 1e-300 {
+            if !(num > 0.0) {
+                return false;
+            }
+            continue;
+        }
+        let t = -num / den;
+        if den > 0.0 {
+            lo = lo.max(t);
+        } else {
+            hi = hi.min(t);
+        }
+    }
+    (hi - lo) * d.length() > tol
+}
+
 /// Visibility rays per partly visible link in [`point_radiosity`].
 pub const POINT_RAYS: usize = 16;
+
+/// Visibility rays per emitter patch for the direct light at a point...
+pub const DIRECT_RAYS: usize = 64;
+
+/// ... and when some but not all of them were blocked.
+pub const PENUMBRA_RAYS: usize = 256;
+
+/// How [`point_radiosity`] gathers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PointGather<'a> {
+    /// Cast rays for every link, not only partly visible ones: a link's
+    /// visibility, whole or none, holds for its receiver as sampled, not
+    /// for every point of it (a point just inside an occluder's
+    /// footprint).
+    pub every_link: bool,
+    /// Emitter patches whose emission is gathered at the point itself
+    /// (exact form factor, [`DIRECT_RAYS`] rays, [`PENUMBRA_RAYS`] in a
+    /// penumbra) rather than through the
+    /// links, which then carry only the emitters' reflected light: a
+    /// link's visibility is an average over its receiver, wrong at points
+    /// in a penumbra, and a fully occluded link is not kept at all. Either
+    /// empty or every emitter patch of the scene.
+    pub direct: &'a [u32],
+}
 
 /// Radiosity at point `x` of leaf `leaf` by a final gather over the links
 /// of the leaf and its ancestors: each link's source contributes its exact
 /// point-to-polygon form factor from `x` (not the link's mean over its
 /// receiver) times its radiosity, and, for a partly visible link, the
 /// kernel-weighted visible fraction of [`POINT_RAYS`] rays from `x`
-/// (seeded by `seed`, the leaf and the source: deterministic). `x` is
-/// moved a millionth of the way toward the leaf's centroid first, so that
-/// a point on an edge takes its value from inside the leaf.
+/// (seeded by `seed`, the leaf and the source: deterministic). `gather`
+/// says which links cast rays and which emitters are gathered directly.
+/// `x` is moved a millionth of the way toward the leaf's centroid first,
+/// so that a point on an edge takes its value from inside the leaf.
 pub fn point_radiosity(
     scene: &Scene,
     bvh: &TriangleBvh,
@@ -821,39 +952,65 @@ pub fn point_radiosity(
     leaf: ElementId,
     x: DVec3,
     seed: u64,
+    gather: PointGather,
 ) -> DVec3 {
     let h = &solution.hierarchy;
     let e = h.get(leaf);
     let patch = &scene.patches[e.patch as usize];
     let x = x + 1e-6 * (e.centroid() - x);
+    // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
+    let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
+        let mut rng = pair_stream(seed, leaf.0, stream);
+        let targets = stratified(n, &mut rng)
+            .into_iter()
+            .map(|t| (x, point_in_polygon(polygon, t)));
+        let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
+        (total > 0.0).then(|| seen / total)
+    };
     let mut irradiance = DVec3::ZERO;
+    for &k in gather.direct {
+        let emitter = &scene.patches[k as usize];
+        if !((x - emitter.corners[0]).dot(emitter.normal) > 0.0) {
+            continue;
+        }
+        let f = form_factor_point_polygon(x, patch.normal, emitter.vertices());
+        if f > 0.0 {
+            // Streams above the element ids: patch k's rays.
+            let stream = u32::MAX - k;
+            let mut v = visible(emitter.vertices(), emitter.normal, DIRECT_RAYS, stream);
+            if v.is_some_and(|v| v > 0.0 && v < 1.0) {
+                // In a penumbra: a finer estimate.
+                v = visible(emitter.vertices(), emitter.normal, PENUMBRA_RAYS, stream);
+            }
+            irradiance += f * v.unwrap_or(0.0) * emitter.emission;
+        }
+    }
     let mut id = Some(leaf);
     while let Some(k) = id {
         for l in &solution.links[k.index()] {
             let s = h.get(l.source);
-            let n_s = scene.patches[s.patch as usize].normal;
-            if !((x - s.corners[0]).dot(n_s) > 0.0) {
+            let source = &scene.patches[s.patch as usize];
+            if !((x - s.corners[0]).dot(source.normal) > 0.0) {
+                continue;
+            }
+            let mut b = s.radiosity;
+            if !gather.direct.is_empty() {
+                b -= source.emission;
+            }
+            if b.max_element() <= 0.0 {
                 continue;
             }
             let f = form_factor_point_polygon(x, patch.normal, s.vertices());
             if !(f > 0.0) {
                 continue;
             }
-            let v = if l.partly_visible() {
-                let mut rng = pair_stream(seed, leaf.0, l.source.0);
-                let targets = stratified(POINT_RAYS, &mut rng)
-                    .into_iter()
-                    .map(|t| (x, point_in_polygon(s.vertices(), t)));
-                let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
-                if total > 0.0 {
-                    seen / total
-                } else {
-                    l.visibility()
-                }
+            let v = if gather.every_link || l.partly_visible() {
+                visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
+                    .unwrap_or(l.visibility())
             } else {
                 l.visibility()
             };
-            irradiance += f * v * s.radiosity;
+            irradiance += f * v * b;
         }
         id = h.get(k).parent();
     }
@@ -896,7 +1053,7 @@ pub fn output_mesh(
         .map(|(v, leaf)| {
             leaf.map(|leaf| {
                 let x = mesh.positions[v].as_dvec3();
-                point_radiosity(scene, bvh, solution, leaf, x, seed)
+                point_radiosity(scene, bvh, solution, leaf, x, seed, PointGather::default())
             })
         })
         .collect();

@@ -23,6 +23,7 @@ pub mod links;
 pub mod load;
 pub mod matrix;
 pub mod mesh;
+pub mod meshing;
 pub mod output;
 pub mod pipeline;
 pub mod progress;

@@ -20,6 +20,7 @@ use nusselt::hierarchical::{Accuracy, HierarchicalSettings, Preset};
 use nusselt::links::Oracle;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::meshing::{MeshMode, MeshSettings};
 use nusselt::output::OutputSet;
 use nusselt::pipeline::{self, SolveSettings};
 use nusselt::progress::Progress;
@@ -182,6 +183,21 @@ struct SolveArgs {
     element_size: Option<f64>,
     #[command(flatten)]
     hierarchical: HierarchicalArgs,
+    /// Hierarchical: the output mesh's vertices: a regular grid, the
+    /// hierarchy's leaf corners, or the leaf corners plus the shadow
+    /// discontinuities as constraint edges, with output adaptivity (the
+    /// default).
+    #[arg(long, value_enum)]
+    mesh: Option<MeshName>,
+    /// Discontinuity mesh: largest relative difference between a triangle's
+    /// interpolated and point-evaluated centroid value before a vertex is
+    /// added there (0 turns output adaptivity off).
+    #[arg(long, default_value_t = MeshSettings::default().adapt_tol)]
+    adapt_tol: f64,
+    /// Uniform mesh: vertices aimed at (default: as many as the hierarchy
+    /// has leaves).
+    #[arg(long)]
+    uniform_vertices: Option<usize>,
     #[command(flatten)]
     kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
@@ -232,6 +248,16 @@ impl Method {
             Method::Shooting => classic(ClassicMethod::Shooting),
         }
     }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum MeshName {
+    /// A regular grid, blind to the lighting.
+    Uniform,
+    /// The corners of the hierarchy's leaves.
+    Quadtree,
+    /// Leaf corners and shadow discontinuities, with output adaptivity.
+    Discontinuity,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -536,13 +562,37 @@ fn run_solve(args: SolveArgs) -> Result<()> {
     let load_time = start.elapsed().as_secs_f64();
     let hierarchical = args.hierarchical.settings(
         args.common.seed,
-        args.kernel.visibility_rays.unwrap_or(9).max(1),
+        args.kernel
+            .visibility_rays
+            .unwrap_or(HierarchicalSettings::default().visibility_rays)
+            .max(1),
         args.tolerance,
         args.max_iterations,
     )?;
+    let mode = match args.mesh {
+        None | Some(MeshName::Discontinuity) => MeshMode::Discontinuity,
+        Some(MeshName::Quadtree) => MeshMode::Quadtree,
+        Some(MeshName::Uniform) => MeshMode::Uniform,
+    };
+    if args.method != Method::Hierarchical && args.mesh.is_some_and(|m| m != MeshName::Uniform) {
+        bail!(
+            "--mesh {} needs --method hierarchical (the classic methods use a uniform mesh)",
+            mode.name()
+        );
+    }
+    if !(args.adapt_tol >= 0.0 && args.adapt_tol.is_finite()) {
+        bail!("--adapt-tol must be zero or positive");
+    }
     let settings = SolveSettings {
         method: args.method.method(),
         hierarchical,
+        mesh: MeshSettings {
+            mode,
+            uniform_vertices: args.uniform_vertices,
+            adapt_tol: args.adapt_tol,
+            ..MeshSettings::default()
+        },
+        discontinuity: Default::default(),
         element_size: args.element_size,
         matrix,
         convergence: Convergence {

@@ -14,11 +14,13 @@ use std::time::Instant;
 use glam::DVec3;
 use serde_json::json;
 
+use crate::discontinuity::{DiscontinuitySettings, discontinuity_segments};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::hierarchical::{HierarchicalSettings, VertexValues, output_mesh, solve_hierarchical};
+use crate::hierarchical::{HierarchicalSettings, solve_hierarchical_guided};
 use crate::matrix::{FormFactorMatrix, MatrixSettings};
 use crate::mesh::OutputMesh;
+use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::output::{self, OutputSet};
 use crate::progress::Progress;
 use crate::render::{RenderSettings, render};
@@ -56,6 +58,10 @@ pub struct SolveSettings {
     pub method: Method,
     /// Thresholds, oracle and rays of the hierarchical method.
     pub hierarchical: HierarchicalSettings,
+    /// Hierarchical: the output mesh's mode and adaptivity.
+    pub mesh: MeshSettings,
+    /// Hierarchical, discontinuity mesh: which segments are traced.
+    pub discontinuity: DiscontinuitySettings,
     /// Classic methods: largest element edge in metres; `None` =
     /// [`DEFAULT_ELEMENT_FRACTION`] of the scene diagonal.
     pub element_size: Option<f64>,
@@ -73,6 +79,8 @@ impl Default for SolveSettings {
         SolveSettings {
             method: Method::Hierarchical,
             hierarchical: HierarchicalSettings::default(),
+            mesh: MeshSettings::default(),
+            discontinuity: DiscontinuitySettings::default(),
             element_size: None,
             matrix: MatrixSettings::default(),
             convergence: Convergence::default(),
@@ -118,8 +126,9 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     }
 }
 
-/// The hierarchical path: link, refine and solve [HSA91], then the leaf
-/// output mesh. Snapshots show the final state.
+/// The hierarchical path: discontinuity segments (for that mesh mode), link,
+/// refine and solve [HSA91], then the output mesh of the mode. Snapshots
+/// show the final state.
 fn solve_with_hierarchy(
     scene: &Scene,
     settings: &SolveSettings,
@@ -140,7 +149,16 @@ fn solve_with_hierarchy(
     let bvh = scene_bvh(scene);
     report.times.bvh = secs(t);
 
-    let solution = solve_hierarchical(scene, &bvh, hs, progress);
+    // The discontinuity mesh's segments also guide the refinement.
+    let t = Instant::now();
+    let guide = if settings.mesh.mode == MeshMode::Discontinuity {
+        discontinuity_segments(scene, &bvh, &settings.discontinuity).by_patch(scene.patches.len())
+    } else {
+        Vec::new()
+    };
+    report.times.discontinuities = secs(t);
+
+    let solution = solve_hierarchical_guided(scene, &bvh, hs, &guide, progress);
     report.times.linking = solution.times.linking;
     report.times.refinement = solution.times.refinement;
     report.times.solve = solution.times.solve;
@@ -193,13 +211,13 @@ fn solve_with_hierarchy(
     }
 
     let t = Instant::now();
-    let out = output_mesh(
-        scene,
-        &bvh,
-        &solution,
-        VertexValues::PointGather { seed: hs.seed },
-    );
+    let mesh_settings = MeshSettings {
+        seed: hs.seed,
+        ..settings.mesh.clone()
+    };
+    let (out, mesh_stats) = build_mesh(scene, &bvh, &solution, &guide, &mesh_settings)?;
     report.times.output_mesh = secs(t);
+    report.mesh = Some(mesh_stats);
 
     let t = Instant::now();
     let frame = render(&out, &view, &settings.render, progress);
@@ -228,6 +246,9 @@ fn solve_with_hierarchy(
     report.settings = json!({
         "method": settings.method.name(),
         "hierarchical": hs,
+        "mesh": settings.mesh,
+        "discontinuity": (settings.mesh.mode == MeshMode::Discontinuity)
+            .then_some(&settings.discontinuity),
         "scaled_thresholds": {
             "ff_eps": th.ff_eps,
             "bf_eps": th.bf_eps,

@@ -22,6 +22,9 @@ pub struct PhaseTimes {
     #[serde(default)]
     pub refinement: f64,
     pub bvh: f64,
+    /// Hierarchical, discontinuity mesh: finding the discontinuity segments.
+    #[serde(default)]
+    pub discontinuities: f64,
     pub mesh: f64,
     pub form_factors: f64,
     pub solve: f64,
@@ -90,6 +93,9 @@ pub struct Report {
     /// Every setting of the run, by name.
     pub settings: serde_json::Value,
     pub counts: Counts,
+    /// Hierarchical: how the output mesh was made.
+    #[serde(default)]
+    pub mesh: Option<crate::meshing::MeshStats>,
     pub times: PhaseTimes,
     pub convergence: ConvergenceReport,
     pub power: Power,

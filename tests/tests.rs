@@ -10,6 +10,7 @@ mod end_to_end;
 mod fuzz_corpus;
 mod hierarchical;
 mod loader;
+mod meshing;
 mod output;
 mod penumbra;
 mod reference;
