@@ -16,3 +16,4 @@ mod scenes;
 mod study;
 mod triangulate;
 mod util;
+mod wireframe;
