@@ -39,5 +39,6 @@ pub mod triangulate;
 pub mod uniform;
 pub mod view;
 pub mod visibility;
+pub mod wireframe;
 
 pub use error::{Error, Result};

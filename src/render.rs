@@ -44,23 +44,7 @@ pub fn render(
     settings: &RenderSettings,
     progress: &Progress,
 ) -> Frame {
-    let tris: Vec<[Vec3; 3]> = mesh
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| mesh.positions[i as usize]))
-        .collect();
-    let (lo, hi) = mesh
-        .positions
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        });
-    let diagonal = if mesh.positions.is_empty() {
-        1.0
-    } else {
-        (hi - lo).length() as f64
-    };
-    let bvh = TriangleBvh::new(&tris, diagonal);
+    let bvh = mesh_bvh(mesh);
     let side = (settings.samples_per_pixel.max(1) as f64).sqrt().ceil() as u32;
     let (w, h) = (view.width, view.height);
     let phase = progress.phase("render", h as u64);
@@ -91,6 +75,42 @@ pub fn render(
         height: h,
         pixels: rows.into_iter().flatten().collect(),
     }
+}
+
+/// Largest coordinate magnitude [`mesh_bvh`] accepts: beyond it the BVH
+/// build's f32 surface areas overflow (obvhs then panics).
+const MAX_COORDINATE: f32 = 1e15;
+
+/// The BVH of `mesh`'s triangles, indexed as `mesh.triangles`, with the
+/// mesh's bounding-box diagonal as length scale. A triangle with an
+/// out-of-range index or a vertex beyond [`MAX_COORDINATE`] (or not finite)
+/// becomes a point at the origin, which no ray hits.
+pub(crate) fn mesh_bvh(mesh: &OutputMesh) -> TriangleBvh {
+    let ok = |p: &Vec3| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE;
+    let tris: Vec<[Vec3; 3]> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| mesh.positions.get(i as usize).copied());
+            match p {
+                [Some(a), Some(b), Some(c)] if ok(&a) && ok(&b) && ok(&c) => [a, b, c],
+                _ => [Vec3::ZERO; 3],
+            }
+        })
+        .collect();
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .filter(|p| ok(p))
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let diagonal = if lo.cmple(hi).all() {
+        (hi - lo).length() as f64
+    } else {
+        1.0
+    };
+    TriangleBvh::new(&tris, diagonal)
 }
 
 /// Radiance seen along the ray: interpolated B / π on the front of the

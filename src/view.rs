@@ -124,6 +124,23 @@ impl View {
         let d = self.forward + sx * self.right + sy * self.up;
         (self.eye, d.normalize())
     }
+
+    /// Where `p` appears: the image point (x, y) in pixels, as [`View::ray`]
+    /// takes them, and the depth of `p` along `forward`. The inverse of
+    /// [`View::ray`] when the depth is positive; meaningless otherwise.
+    pub fn project(&self, p: DVec3) -> (f64, f64, f64) {
+        let v = p - self.eye;
+        let depth = v.dot(self.forward);
+        let tan = (0.5 * self.yfov).tan();
+        let aspect = self.width as f64 / self.height as f64;
+        let sx = v.dot(self.right) / (depth * tan * aspect);
+        let sy = v.dot(self.up) / (depth * tan);
+        (
+            0.5 * (sx + 1.0) * self.width as f64,
+            0.5 * (1.0 - sy) * self.height as f64,
+            depth,
+        )
+    }
 }
 
 #[cfg(test)]
@@ -158,6 +175,14 @@ mod tests {
         assert!(v.ray(512.0, 128.0).1.x > 0.0);
         let top = v.ray(256.0, 0.0).1;
         assert!((top.y.atan2(-top.z) - 0.4).abs() < 1e-12);
+        // `project` inverts `ray`.
+        let (o, d) = v.ray(100.25, 30.5);
+        let (x, y, depth) = v.project(o + 3.0 * d);
+        assert!(
+            (x - 100.25).abs() < 1e-9 && (y - 30.5).abs() < 1e-9,
+            "{x} {y}"
+        );
+        assert!((depth - 3.0 * d.dot(v.forward)).abs() < 1e-12);
     }
 
     #[test]

@@ -18,3 +18,4 @@ mod scenes;
 mod study;
 mod triangulate;
 mod util;
+mod wireframe;

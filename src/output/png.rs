@@ -12,6 +12,10 @@
 //! byte = round(255 s)
 //! ```
 //!
+//! An [`Overlay`] (line coverage a ∈ [0, 1] and colour c, a display value)
+//! is composited after the clamp and before the transfer function:
+//! `v' = v + a (c − v)`, so anti-aliased lines blend in linear light.
+//!
 //! Invariant: row 0 of the [`Frame`] is the top row of the PNG.
 
 use image::ImageEncoder;
@@ -61,21 +65,45 @@ fn srgb_encode(v: f32) -> f32 {
     }
 }
 
+/// `v` clamped to [0, 1], NaN to 0.
+fn unit(v: f32) -> f32 {
+    if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) }
+}
+
+/// The 8-bit sRGB code of display value `v` in [0, 1].
+fn code(v: f32) -> u8 {
+    (srgb_encode(v) * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
 /// The 8-bit sRGB code of linear value `linear` under `exposure` (the tone
 /// map of the module doc).
 pub fn display_byte(linear: f32, exposure: f32) -> u8 {
-    let scaled = linear * exposure;
-    let v = if scaled.is_nan() {
-        0.0
-    } else {
-        scaled.clamp(0.0, 1.0)
-    };
-    (srgb_encode(v) * 255.0).round().clamp(0.0, 255.0) as u8
+    code(unit(linear * exposure))
+}
+
+/// Lines drawn over an image by [`encode_png_with_overlay`].
+#[derive(Clone, Copy, Debug)]
+pub struct Overlay<'a> {
+    /// Coverage in [0, 1] per pixel, row-major like the frame's pixels.
+    pub coverage: &'a [f32],
+    /// Line colour: a display value in [0, 1] per channel (linear, before
+    /// the sRGB transfer function).
+    pub color: [f32; 3],
 }
 
 /// Encodes `frame` as an 8-bit RGB PNG with the tone map of the module doc.
 /// `exposure` must be finite and non-negative.
 pub fn encode_png(frame: &Frame, exposure: f32) -> Result<Vec<u8>> {
+    encode(frame, exposure, None)
+}
+
+/// [`encode_png`] with `overlay` composited as the module doc says. The
+/// coverage must have one value per pixel.
+pub fn encode_png_with_overlay(frame: &Frame, exposure: f32, overlay: &Overlay) -> Result<Vec<u8>> {
+    encode(frame, exposure, Some(overlay))
+}
+
+fn encode(frame: &Frame, exposure: f32, overlay: Option<&Overlay>) -> Result<Vec<u8>> {
     if !exposure.is_finite() || exposure < 0.0 {
         return Err(Error::Setting(format!(
             "exposure {exposure} must be finite and non-negative"
@@ -94,11 +122,34 @@ pub fn encode_png(frame: &Frame, exposure: f32) -> Result<Vec<u8>> {
             format!("{} pixels for a {w}×{h} image", frame.pixels.len()),
         ));
     }
-    let bytes: Vec<u8> = frame
-        .pixels
-        .iter()
-        .flat_map(|p| p.map(|c| display_byte(c, exposure)))
-        .collect();
+    let bytes: Vec<u8> = match overlay {
+        None => frame
+            .pixels
+            .iter()
+            .flat_map(|p| p.map(|c| display_byte(c, exposure)))
+            .collect(),
+        Some(o) => {
+            if o.coverage.len() != frame.pixels.len() {
+                return Err(Error::encode(
+                    "the PNG overlay",
+                    format!("{} coverage values for a {w}×{h} image", o.coverage.len()),
+                ));
+            }
+            let color = o.color.map(unit);
+            frame
+                .pixels
+                .iter()
+                .zip(o.coverage)
+                .flat_map(|(p, a)| {
+                    let a = unit(*a);
+                    [0, 1, 2].map(|k| {
+                        let v = unit(p[k] * exposure);
+                        code(v + a * (color[k] - v))
+                    })
+                })
+                .collect()
+        }
+    };
     let mut out = Vec::new();
     PngEncoder::new(&mut out)
         .write_image(&bytes, w, h, image::ExtendedColorType::Rgb8)
