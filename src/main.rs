@@ -198,6 +198,10 @@ struct SolveArgs {
     /// has leaves).
     #[arg(long)]
     uniform_vertices: Option<usize>,
+    /// Draw the output mesh's edges over render.png (render.exr stays
+    /// clean).
+    #[arg(long)]
+    wireframe: bool,
     #[command(flatten)]
     kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
@@ -605,6 +609,7 @@ fn run_solve(args: SolveArgs) -> Result<()> {
         },
         view: args.view.overrides(),
         snapshots: args.snapshots.clone(),
+        wireframe: args.wireframe,
     };
     let mut run = pipeline::solve(&scene, &settings, &progress)
         .with_context(|| format!("solving {}", args.scene.display()))?;

@@ -72,6 +72,8 @@ pub struct SolveSettings {
     pub view: ViewOverrides,
     /// Iterations after which to render a snapshot.
     pub snapshots: Vec<usize>,
+    /// Draw the output mesh's edges over `render.png` (not `render.exr`).
+    pub wireframe: bool,
 }
 
 impl Default for SolveSettings {
@@ -87,6 +89,7 @@ impl Default for SolveSettings {
             render: RenderSettings::default(),
             view: ViewOverrides::default(),
             snapshots: Vec::new(),
+            wireframe: false,
         }
     }
 }
@@ -95,6 +98,8 @@ impl Default for SolveSettings {
 #[derive(Clone, Debug)]
 pub struct SolveRun {
     pub mesh: OutputMesh,
+    /// Overlay the mesh's edges on `render.png`.
+    pub wireframe: bool,
     pub frame: Frame,
     /// Renders after the requested iterations (the final state for those
     /// past the last iteration).
@@ -260,7 +265,15 @@ fn solve_with_hierarchy(
         "width": view.width,
         "height": view.height,
     });
-    Ok(finish(report, view, out, frame, snapshots, start))
+    Ok(finish(
+        report,
+        view,
+        out,
+        frame,
+        snapshots,
+        start,
+        settings.wireframe,
+    ))
 }
 
 /// The classic path: uniform mesh, dense matrix, classic solver.
@@ -405,7 +418,15 @@ fn solve_classic(
         "width": view.width,
         "height": view.height,
     });
-    Ok(finish(report, view, out, frame, snapshots, start))
+    Ok(finish(
+        report,
+        view,
+        out,
+        frame,
+        snapshots,
+        start,
+        settings.wireframe,
+    ))
 }
 
 /// The common end of every solve: exposure, view and total time.
@@ -416,12 +437,14 @@ fn finish(
     frame: Frame,
     snapshots: Vec<(usize, Frame)>,
     start: Instant,
+    wireframe: bool,
 ) -> SolveRun {
     report.exposure = frame_exposure(&frame);
     report.view = Some(view);
     report.times.total = secs(start);
     SolveRun {
         mesh,
+        wireframe,
         frame,
         snapshots,
         report,
@@ -447,10 +470,17 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     set.stage("baked.bin", &bin)?;
     set.stage("baked.gltf", &gltf)?;
     set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
-    set.stage(
-        "render.png",
-        &output::png::encode_png(&run.frame, exposure)?,
-    )?;
+    let png = match (&run.report.view, run.wireframe) {
+        (Some(view), true) => {
+            let overlay = output::png::Overlay {
+                coverage: &crate::wireframe::wireframe_mask(&run.mesh, view),
+                color: crate::wireframe::LINE_COLOR,
+            };
+            output::png::encode_png_with_overlay(&run.frame, exposure, &overlay)?
+        }
+        _ => output::png::encode_png(&run.frame, exposure)?,
+    };
+    set.stage("render.png", &png)?;
     for (iteration, frame) in &run.snapshots {
         set.stage(
             &format!("snapshot-{iteration:05}.exr"),
