@@ -171,3 +171,46 @@ fn matrix_over_the_memory_budget_is_refused_with_its_size() {
     assert_user_error(&out, "60000 elements needs 13.41 GiB");
     assert!(!dir.path().join("out").exists(), "nothing written");
 }
+
+#[test]
+fn mesh_flags_are_checked_and_wireframe_touches_only_the_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "box.gltf", &gltf_json(&lit_box()));
+    assert_user_error(
+        &nusselt(
+            &[
+                "solve", &p, "-q", "--method", "jacobi", "--mesh", "quadtree",
+            ],
+            dir.path(),
+        ),
+        "needs --method hierarchical",
+    );
+    assert_user_error(
+        &nusselt(&["solve", &p, "-q", "--adapt-tol=-1"], dir.path()),
+        "--adapt-tol",
+    );
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "solve",
+            &p,
+            "-q",
+            "-o",
+            out,
+            "--accuracy",
+            "preview",
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ];
+        args.extend_from_slice(extra);
+        let o = nusselt(&args, dir.path());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let read = |f: &str| fs::read(dir.path().join(out).join(f)).unwrap();
+        (read("render.png"), read("render.exr"))
+    };
+    let (png, exr) = run("plain", &[]);
+    let (png_w, exr_w) = run("wire", &["--wireframe"]);
+    assert_eq!(exr, exr_w);
+    assert_ne!(png, png_w);
+}
