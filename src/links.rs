@@ -196,17 +196,41 @@ pub fn evaluate_link(
         lo = lo.min(v);
         hi = hi.max(v);
     }
+    // Every quarter centroid behind the source's plane while a corner sees
+    // it: the midpoint rule says 0 for a pair that does exchange light (a
+    // floor around the base of a box, beside a face that leans away). The
+    // quadrature decides.
+    if !(f > 0.0) && hi > 0.0 {
+        f = exact_form_factor(r, s, n_s, 0.01 * hi).unwrap_or(0.0);
+    }
     let mut link = Link::new(s_id, f, hi - lo, 0.0, 0.0);
     if !(f > 0.0) || skip_visibility(&link) {
         return (link, 0);
     }
+    let mut rng = pair_stream(seed, r_id.0, s_id.0);
+    let (v, spread, cast) = sample_visibility(scene, r, s, bvh, rays, &mut rng);
+    link = Link::new(s_id, f, hi - lo, v, spread);
+    (link, cast)
+}
+
+/// The kernel-weighted visible fraction of `s` from `r` and its spread
+/// over `r`'s quarters (see [`evaluate_link`]), and the rays cast.
+fn sample_visibility(
+    scene: &Scene,
+    r: &Element,
+    s: &Element,
+    bvh: &TriangleBvh,
+    rays: usize,
+    rng: &mut impl rand::Rng,
+) -> (f64, f64, u64) {
+    let n_r = scene.patches[r.patch as usize].normal;
+    let n_s = scene.patches[s.patch as usize].normal;
     let per_quarter = rays.max(1).div_ceil(4);
     let total = 4 * per_quarter;
-    let mut rng = pair_stream(seed, r_id.0, s_id.0);
-    let from = stratified(per_quarter, &mut rng);
-    let mut to = stratified(per_quarter, &mut rng);
+    let from = stratified(per_quarter, rng);
+    let mut to = stratified(per_quarter, rng);
     use rand::seq::SliceRandom;
-    to.shuffle(&mut rng);
+    to.shuffle(rng);
     let targets: Vec<DVec3> = to
         .iter()
         .map(|b| point_in_polygon(s.vertices(), *b))
@@ -233,8 +257,7 @@ pub fn evaluate_link(
         .map(|k| seen[k] / weight[k])
         .fold((1.0f64, 0.0f64), |(lo, hi), q| (lo.min(q), hi.max(q)));
     let spread = (max - min).max(0.0);
-    link = Link::new(s_id, f, hi - lo, v, spread);
-    (link, total as u64)
+    (v, spread, total as u64)
 }
 
 /// Integrand evaluations [`sharpen`] may spend on one link.
@@ -250,16 +273,28 @@ pub fn sharpen(link: &mut Link, receiver: &Element, source: &Element, source_nor
     if !(link.error as f64 > 0.1 * f) {
         return;
     }
+    if let Some(exact) = exact_form_factor(receiver, source, source_normal, 0.01 * f) {
+        link.form_factor = exact as f32;
+    }
+}
+
+/// The unoccluded form factor receiver → source by adaptive quadrature of
+/// the exact inner integral (zero behind the source's plane), to
+/// `tolerance`, in [0, 1]; `None` when the quadrature fails.
+fn exact_form_factor(
+    receiver: &Element,
+    source: &Element,
+    source_normal: DVec3,
+    tolerance: f64,
+) -> Option<f64> {
     let exact = form_factor_polygon_polygon_with(
         receiver.vertices(),
         source.vertices(),
-        0.01 * f,
+        tolerance,
         SHARPEN_EVALUATIONS,
         |x| f64::from(u8::from((x - source.corners[0]).dot(source_normal) > 0.0)),
     );
-    if exact.value.is_finite() {
-        link.form_factor = exact.value.clamp(0.0, 1.0) as f32;
-    }
+    exact.value.is_finite().then(|| exact.value.clamp(0.0, 1.0))
 }
 
 /// What the oracle says about a link.
@@ -334,9 +369,10 @@ pub fn visibility_error(t: &Thresholds, link: &Link) -> f64 {
 pub struct SourceState {
     /// Its radiosity (the mean over it, for a split element).
     pub radiosity: DVec3,
-    /// How much its children's radiosities differ (max − min per channel;
-    /// zero for a leaf): the link hands the receiver the mean, however the
-    /// kernel weighs the source's parts.
+    /// How much its radiosity varies across it (twice the standard
+    /// deviation over its leaves, per channel; zero for a leaf): the link
+    /// hands the receiver the mean, however the kernel weighs the source's
+    /// parts.
     pub unevenness: DVec3,
 }
 

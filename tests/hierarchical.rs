@@ -113,7 +113,7 @@ fn furnace_within_the_stated_tolerance() {
 
 /// Patch-average radiosity of a fine uniform mesh (point-polygon kernel,
 /// 16 rays per pair, Jacobi to 1e-9).
-fn uniform_reference(scene: &Scene, fraction: f64) -> Vec<DVec3> {
+pub(crate) fn uniform_reference(scene: &Scene, fraction: f64) -> Vec<DVec3> {
     let mesh = UniformMesh::new(scene, scene.diagonal() * fraction);
     let bvh = scene_bvh(scene);
     let settings = MatrixSettings {
@@ -179,9 +179,11 @@ fn cornell_box_agrees_with_a_fine_uniform_solution_and_improves_with_accuracy() 
         .map(|a| patch_error(&scene, &run(&scene, &with(a)), &reference))
         .collect();
     eprintln!("patch-average errors (preview, default, high): {errors:?}");
-    // Stated tolerance: 4 % area-weighted on patch averages at the default
-    // (measured 3.1–3.6 %; the high preset 1.9–2.3 %).
-    assert!(errors[1] < 0.04, "{errors:?}");
+    // Stated tolerance: 2.5 % area-weighted on patch averages at the
+    // default (measured 1.7 %; preview 5.6 %, high 0.9 %). Before links
+    // whose midpoint rule said 0 got their quadrature (a floor beside a
+    // block face leaning away) the default measured 3.1–3.6 %.
+    assert!(errors[1] < 0.025, "{errors:?}");
     assert!(
         errors[0] >= errors[1] && errors[1] >= errors[2] * 0.9,
         "{errors:?}"
@@ -325,4 +327,41 @@ fn link_budget_stops_refinement_and_says_so() {
     let s = run(&scene, &settings);
     assert!(s.budget_reached);
     assert!(s.link_count() <= 2_000, "{}", s.link_count());
+}
+
+/// The floor of the Cornell box and a face of the tall block that leans
+/// away from the floor's middle: every quarter centroid of the floor lies
+/// behind the face's plane (the midpoint rule says F = 0), while the floor
+/// in front of it does see it. The link must carry the exact front-side
+/// form factor, not drop the pair.
+#[test]
+fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
+    use nusselt::formfactor::form_factor_polygon_polygon_with;
+    use nusselt::hierarchy::Hierarchy;
+    use nusselt::links::evaluate_link;
+
+    let scene = cornell();
+    let bvh = scene_bvh(&scene);
+    let h = Hierarchy::new(&scene);
+    let floor = h.root(0);
+    let face = h.root(17);
+    let (fe, se) = (h.get(floor), h.get(face));
+    let n_s = scene.patches[17].normal;
+    let quarters_behind = nusselt::hierarchy::split_corners(fe.shape, &fe.corners)
+        .iter()
+        .all(|q| (nusselt::scene::polygon_centroid(q) - se.corners[0]).dot(n_s) < 0.0);
+    assert!(quarters_behind, "the case this test is about");
+    let exact =
+        form_factor_polygon_polygon_with(fe.vertices(), se.vertices(), 1e-6, 1 << 16, |x| {
+            f64::from(u8::from((x - se.corners[0]).dot(n_s) > 0.0))
+        })
+        .value;
+    let (link, _) = evaluate_link(&scene, &h.elements, floor, face, &bvh, 32, 0, |_| false);
+    let f = f64::from(link.form_factor);
+    assert!(exact > 1e-3, "{exact}");
+    assert!((f - exact).abs() < 0.05 * exact, "F {f} against {exact}");
+    assert!(
+        link.visibility() > 0.5,
+        "the floor in front of the face sees it"
+    );
 }
