@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use crate::discontinuity::Segment;
 use crate::formfactor::form_factor_point_polygon;
-use crate::hierarchy::{ElementId, Hierarchy};
+use crate::hierarchy::{ElementId, Hierarchy, split_corners};
 use crate::links::{
     Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
     sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
@@ -41,7 +41,7 @@ use crate::links::{
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
-use crate::scene::{Scene, Shape};
+use crate::scene::{Scene, Shape, polygon_centroid};
 use crate::visibility::TriangleBvh;
 
 /// The named accuracy presets of `--accuracy`.
@@ -246,7 +246,7 @@ impl HierarchicalSolution {
             .map(|ls| {
                 ls.iter()
                     .filter(|l| from_patch(h.get(l.source).patch))
-                    .map(|l| l.coupling() * h.get(l.source).radiosity)
+                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
                     .sum()
             })
             .collect();
@@ -286,6 +286,9 @@ struct Solver<'a> {
     n_links: u64,
     rays: u64,
     budget_reached: bool,
+    /// Elements `..measured` have their exposure measured (the arena only
+    /// grows).
+    measured: usize,
 }
 
 impl Solver<'_> {
@@ -373,7 +376,10 @@ impl Solver<'_> {
                     .filter(|l| l.spread() > 0.0)
                     .map(|l| {
                         let s = h.get(l.source);
-                        (s.patch, shadow_error(&t, l, re.area, rho, s.radiosity))
+                        (
+                            s.patch,
+                            shadow_error(&t, l, re.area, rho, s.exposed_radiosity),
+                        )
                     })
                     .collect();
                 per_patch.sort_by_key(|(p, _)| *p);
@@ -619,7 +625,7 @@ impl Solver<'_> {
             let rho = self.scene.patches[self.hierarchy.get(k).patch as usize].reflectance;
             let own = std::mem::take(&mut self.links[k.index()]);
             let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
-                let b = (rho * self.hierarchy.get(l.source).radiosity).max_element();
+                let b = (rho * self.hierarchy.get(l.source).exposed_radiosity).max_element();
                 let v_err = visibility_error(&self.thresholds, l);
                 b * (l.error as f64 + v_err * l.form_factor as f64) > 0.25 * tol
             });
@@ -643,6 +649,39 @@ impl Solver<'_> {
         split
     }
 
+    /// Measures the exposure of the leaves created since the last call: of
+    /// the centroids of an element's four quarters, the fraction from which
+    /// a ray along the normal does not first meet the back of a surface
+    /// (a point under a box on the floor, inside a closed solid, sees only
+    /// backs). Elements split meanwhile get theirs from their children in
+    /// push-pull.
+    fn measure_exposure(&mut self) {
+        let (scene, bvh) = (self.scene, self.bvh);
+        let gap = 1e-6 * scene.diagonal();
+        let far = 2.0 * scene.diagonal();
+        let h = &mut self.hierarchy;
+        h.elements[self.measured..]
+            .par_iter_mut()
+            .with_min_len(64)
+            .filter(|e| e.is_leaf())
+            .for_each(|e| {
+                let n = scene.patches[e.patch as usize].normal;
+                let k = e.vertices().len();
+                let buried = split_corners(e.shape, &e.corners)
+                    .iter()
+                    .filter(|q| {
+                        let from = polygon_centroid(&q[..k]) + gap * n;
+                        bvh.closest_hit(from, n, far).is_some_and(|hit| {
+                            let t = scene.triangles[hit.triangle as usize].positions;
+                            (t[1] - t[0]).cross(t[2] - t[0]).dot(n) > 0.0
+                        })
+                    })
+                    .count();
+                e.exposure = 1.0 - buried as f32 / 4.0;
+            });
+        self.measured = h.len();
+    }
+
     /// Gather + push-pull until Σ B·A changes by less than the tolerance
     /// (at least two iterations); appends to `history`. Returns whether the
     /// tolerance was met.
@@ -652,6 +691,7 @@ impl Solver<'_> {
         history: &mut Vec<Iteration>,
         start: Instant,
     ) -> bool {
+        self.measure_exposure();
         let mut power = f64::NAN;
         for k in 0..self.settings.max_iterations.max(2) {
             let gathered = self.gather();
@@ -711,7 +751,7 @@ impl Solver<'_> {
             .with_min_len(64)
             .map(|ls| {
                 ls.iter()
-                    .map(|l| l.coupling() * h.get(l.source).radiosity)
+                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
                     .sum()
             })
             .collect()
@@ -731,20 +771,33 @@ impl Solver<'_> {
         }
         for i in (0..h.len()).rev() {
             let e = &h.elements[i];
-            let b = match e.children() {
+            let (b, exposed, exposure) = match e.children() {
                 None => {
                     let p = &self.scene.patches[e.patch as usize];
-                    p.emission + p.reflectance * irradiance[i]
+                    let b = p.emission + p.reflectance * irradiance[i];
+                    (b, b, e.exposure)
                 }
                 Some(kids) => {
-                    kids.iter()
-                        .map(|k| h.elements[k.index()].area * h.elements[k.index()].radiosity)
-                        .sum::<DVec3>()
-                        / e.area
+                    let (mut b, mut exposed, mut exposed_area) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+                    for k in kids {
+                        let k = &h.elements[k.index()];
+                        let a = k.area * f64::from(k.exposure);
+                        b += k.area * k.radiosity;
+                        exposed += a * k.exposed_radiosity;
+                        exposed_area += a;
+                    }
+                    let b = b / e.area;
+                    if exposed_area > 0.0 {
+                        (b, exposed / exposed_area, (exposed_area / e.area) as f32)
+                    } else {
+                        (b, b, 0.0)
+                    }
                 }
             };
-            h.elements[i].radiosity = b;
-            h.elements[i].gathered = gathered[i];
+            let e = &mut h.elements[i];
+            e.radiosity = b;
+            e.exposed_radiosity = exposed;
+            e.exposure = exposure.clamp(0.0, 1.0);
         }
         (0..h.root_count())
             .map(|r| h.elements[r].radiosity.element_sum() * h.elements[r].area)
@@ -797,6 +850,7 @@ pub fn solve_hierarchical_guided(
         n_links: 0,
         rays: 0,
         budget_reached: false,
+        measured: 0,
     };
     let mut times = HierarchicalTimes::default();
     let phase = progress.phase("hierarchical", acc.max_rounds.max(1) as u64);
@@ -993,7 +1047,7 @@ pub fn point_radiosity(
             if !((x - s.corners[0]).dot(source.normal) > 0.0) {
                 continue;
             }
-            let mut b = s.radiosity;
+            let mut b = s.exposed_radiosity;
             if !gather.direct.is_empty() {
                 b -= source.emission;
             }

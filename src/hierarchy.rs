@@ -11,6 +11,7 @@
 //!   parent's within 1e-9 relative, corners shared as drawn below), lie on
 //!   the parent's patch and keep its orientation (normal = patch normal).
 //! - Ids are never reused or freed: an element, once split, stays split.
+//! - Radiosities are finite; `exposure` is in [0, 1].
 //!
 //! Child order and corners (counter-clockwise seen from the front, as the
 //! patch; `c` is the bilinear centre, `mij` the midpoint of edge i–j):
@@ -57,8 +58,15 @@ pub struct Element {
     /// Radiosity B: at a leaf E + ρ H; above, the area-weighted mean of the
     /// children (after push-pull).
     pub radiosity: DVec3,
-    /// Irradiance gathered over this element's own links.
-    pub gathered: DVec3,
+    /// Mean radiosity over the element's exposed part: what a link from
+    /// it carries. Area inside a closed solid (a floor under a box) is
+    /// dark and seen by nothing; averaging it in would dim every link
+    /// from the element twice, once by visibility and once by the mean.
+    pub exposed_radiosity: DVec3,
+    /// Fraction of the area that is exposed, in [0, 1] (1 until the solver
+    /// measures it; above the leaves, the area-weighted mean of the
+    /// children's after push-pull).
+    pub exposure: f32,
     pub patch: u32,
     parent: u32,
     first_child: u32,
@@ -153,7 +161,8 @@ impl Hierarchy {
                 corners: p.corners,
                 area: p.area,
                 radiosity: p.emission,
-                gathered: DVec3::ZERO,
+                exposed_radiosity: p.emission,
+                exposure: 1.0,
                 patch: i as u32,
                 parent: NONE,
                 first_child: NONE,
@@ -219,7 +228,8 @@ impl Hierarchy {
                 area: area_of(parent.shape, &corners),
                 corners,
                 radiosity: parent.radiosity,
-                gathered: DVec3::ZERO,
+                exposed_radiosity: parent.exposed_radiosity,
+                exposure: 1.0,
                 patch: parent.patch,
                 parent: id.0,
                 first_child: NONE,
@@ -231,18 +241,18 @@ impl Hierarchy {
         [first, first + 1, first + 2, first + 3].map(ElementId)
     }
 
-    /// What a link's oracle needs of source `id`: its radiosity and how
-    /// much its children's differ.
+    /// What a link's oracle needs of source `id`: the radiosity its links
+    /// carry (the exposed part's) and how much its children's differ.
     pub fn source_state(&self, id: ElementId) -> crate::links::SourceState {
         let e = self.get(id);
         let unevenness = e.children().map_or(DVec3::ZERO, |kids| {
-            let b = kids.map(|k| self.get(k).radiosity);
+            let b = kids.map(|k| self.get(k).exposed_radiosity);
             let lo = b.iter().fold(DVec3::INFINITY, |a, x| a.min(*x));
             let hi = b.iter().fold(DVec3::NEG_INFINITY, |a, x| a.max(*x));
             hi - lo
         });
         crate::links::SourceState {
-            radiosity: e.radiosity,
+            radiosity: e.exposed_radiosity,
             unevenness,
         }
     }
@@ -273,8 +283,14 @@ impl Hierarchy {
             if normal.dot(patch.normal) < 1.0 - 1e-9 {
                 return Err(format!("element {i}: normal differs from its patch"));
             }
-            if !e.radiosity.is_finite() || !e.gathered.is_finite() {
+            if !e.radiosity.is_finite() || !e.exposed_radiosity.is_finite() {
                 return Err(format!("element {i}: non-finite radiosity"));
+            }
+            if !(0.0..=1.0).contains(&e.exposure) {
+                return Err(format!(
+                    "element {i}: exposure {} outside [0, 1]",
+                    e.exposure
+                ));
             }
             let Some(children) = e.children() else {
                 continue;
