@@ -299,11 +299,7 @@ fn results_do_not_depend_on_the_thread_count() {
     let bvh = scene_bvh(&scene);
     let settings = DiscontinuitySettings::default();
     let with = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| discontinuity_segments(&scene, &bvh, &settings))
+        crate::util::on_threads(threads, || discontinuity_segments(&scene, &bvh, &settings))
     };
     let one = with(1);
     let two = with(2);
@@ -322,11 +318,9 @@ fn three_rooms_segments_are_identical_for_one_and_two_threads() {
     let scene = load("three-rooms.gltf");
     let settings = DiscontinuitySettings::default();
     let with = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| discontinuity_segments(&scene, &scene_bvh(&scene), &settings))
+        crate::util::on_threads(threads, || {
+            discontinuity_segments(&scene, &scene_bvh(&scene), &settings)
+        })
     };
     let bits = |d: &Discontinuities| -> Vec<[u64; 8]> {
         d.segments

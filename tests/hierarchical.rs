@@ -308,13 +308,7 @@ fn no_light_leaks_under_the_blocks() {
 fn same_radiosities_for_one_and_two_threads() {
     let scene = cornell();
     let settings = with(Accuracy::preview());
-    let solve_on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| run(&scene, &settings))
-    };
+    let solve_on = |threads: usize| crate::util::on_threads(threads, || run(&scene, &settings));
     let (one, two) = (solve_on(1), solve_on(2));
     assert_eq!(one.hierarchy.elements, two.hierarchy.elements);
     assert_eq!(one.links, two.links);

@@ -347,14 +347,10 @@ fn the_hierarchy_follows_the_discontinuities() {
 #[test]
 fn same_mesh_for_one_and_two_threads() {
     let build = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let s = solved_cornell(true);
-                mesh(&s, MeshMode::Discontinuity).0
-            })
+        crate::util::on_threads(threads, || {
+            let s = solved_cornell(true);
+            mesh(&s, MeshMode::Discontinuity).0
+        })
     };
     assert_eq!(build(1), build(2));
 }

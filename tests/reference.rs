@@ -405,11 +405,7 @@ fn noise_image_predicts_the_real_error() {
 fn same_seed_same_image_on_any_thread_count() {
     let (scene, v) = cornell(16);
     let run = |threads: usize, seed: u64| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| trace(&scene, &v, &settings(8, seed)))
+        crate::util::on_threads(threads, || trace(&scene, &v, &settings(8, seed)))
     };
     let one = run(1, 7);
     let two = run(2, 7);

@@ -167,3 +167,13 @@ pub fn assert_user_error(out: &Output, needle: &str) {
         "{stderr}"
     );
 }
+
+/// Runs `f` in a fresh rayon pool of `threads` threads (thread-count
+/// independence checks).
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}

@@ -204,13 +204,7 @@ fn same_mask_for_one_and_two_threads() {
     };
     let view = View::resolve(None, (DVec3::splat(-2.0), DVec3::splat(2.0)), &o).unwrap();
     let masks: Vec<Vec<f32>> = [1, 2]
-        .map(|threads| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| wireframe_mask(&mesh, &view))
-        })
+        .map(|threads| crate::util::on_threads(threads, || wireframe_mask(&mesh, &view)))
         .into();
     assert_eq!(masks[0], masks[1]);
     let lit = masks[0].iter().filter(|c| **c > 0.5).count();
