@@ -212,12 +212,44 @@ pub fn form_factor_polygon_polygon_with(
     max_evaluations: usize,
     visible: impl Fn(DVec3) -> f64,
 ) -> Estimate {
+    form_factor_polygon_polygon_checked(receiver, source, tolerance, max_evaluations, None, visible)
+}
+
+/// [`form_factor_polygon_polygon_with`] given `guess`, an estimate by a
+/// lower-order rule: when the first Radon pass agrees with it within
+/// `tolerance`, that pass is the answer (an embedded-rule error estimate)
+/// and no refinement is spent.
+pub fn form_factor_polygon_polygon_checked(
+    receiver: &[DVec3],
+    source: &[DVec3],
+    tolerance: f64,
+    max_evaluations: usize,
+    guess: Option<f64>,
+    visible: impl Fn(DVec3) -> f64,
+) -> Estimate {
     let (area, normal) = crate::scene::polygon_area_normal(receiver);
     if !(area > 0.0) || source.len() < 3 {
         return Estimate::default();
     }
     let f = |x: DVec3| form_factor_point_polygon(x, normal, source) * visible(x).clamp(0.0, 1.0);
     let mut evaluations = 0;
+    let fan: Vec<([DVec3; 3], f64)> = (1..receiver.len() - 1)
+        .map(|k| {
+            let tri = [receiver[0], receiver[k], receiver[k + 1]];
+            (tri, radon(&tri, &f, &mut evaluations))
+        })
+        .collect();
+    if let Some(g) = guess {
+        let value = fan.iter().map(|t| t.1).sum::<f64>() / area;
+        let diff = (value - g).abs();
+        if value.is_finite() && diff <= tolerance {
+            return Estimate {
+                value: value.clamp(0.0, 1.0),
+                error: diff,
+                evaluations,
+            };
+        }
+    }
     let piece = |tri: [DVec3; 3], value: f64, evaluations: &mut usize| {
         let [a, b, c] = tri;
         let (ab, bc, ca) = (0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a));
@@ -231,9 +263,7 @@ pub fn form_factor_polygon_polygon_with(
         }
     };
     let mut heap = std::collections::BinaryHeap::new();
-    for k in 1..receiver.len() - 1 {
-        let tri = [receiver[0], receiver[k], receiver[k + 1]];
-        let value = radon(&tri, &f, &mut evaluations);
+    for (tri, value) in fan {
         heap.push(piece(tri, value, &mut evaluations));
     }
     let budget = tolerance.max(0.0) * area;

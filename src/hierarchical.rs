@@ -36,7 +36,7 @@ use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy, split_corners};
 use crate::links::{
     Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
-    sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
+    sharpen, sharpen_tolerance, split_at_any_visibility, visibility_error, weighted_visibility,
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
@@ -275,6 +275,26 @@ pub(crate) fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
     (exitance, largest, area)
 }
 
+/// A (receiver, source) pair waiting for its link to be evaluated.
+#[derive(Clone, Copy, Debug)]
+struct Pair {
+    receiver: ElementId,
+    source: ElementId,
+    /// The link this pair refines saw its source whole: a visibility probe
+    /// may stand for the full set of rays ([`evaluate_link`]).
+    whole: bool,
+}
+
+impl Pair {
+    fn refining(receiver: ElementId, source: ElementId, whole: bool) -> Pair {
+        Pair {
+            receiver,
+            source,
+            whole,
+        }
+    }
+}
+
 /// The state of a solve in progress.
 struct Solver<'a> {
     scene: &'a Scene,
@@ -308,7 +328,7 @@ impl Solver<'_> {
         r: ElementId,
         link: Link,
         decision: Decision,
-        next: &mut Vec<(ElementId, ElementId)>,
+        next: &mut Vec<Pair>,
     ) -> bool {
         let (receivers, sources) = match decision {
             Decision::Accept => return false,
@@ -321,14 +341,20 @@ impl Solver<'_> {
         };
         // One link becomes four.
         self.n_links += 3;
-        next.extend(receivers.into_iter().zip(sources));
+        let whole = link.wholly_visible();
+        next.extend(
+            receivers
+                .into_iter()
+                .zip(sources)
+                .map(|(r, s)| Pair::refining(r, s, whole)),
+        );
         true
     }
 
     /// Evaluates the (receiver, source) pairs and refines until every link
     /// is accepted, shadows included ([`Solver::shadow_splits`]), or the
     /// budget stops it. Returns the links split.
-    fn settle(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
+    fn settle(&mut self, mut pending: Vec<Pair>) -> u64 {
         let mut splits = 0;
         loop {
             splits += self.settle_links(pending);
@@ -350,7 +376,7 @@ impl Solver<'_> {
     /// source was split into many small pieces, each link's share below
     /// the threshold. Returns the child pairs to evaluate and the links
     /// moved.
-    fn shadow_splits(&mut self) -> (Vec<(ElementId, ElementId)>, u64) {
+    fn shadow_splits(&mut self) -> (Vec<Pair>, u64) {
         let t = self.thresholds;
         let h = &self.hierarchy;
         let scene = self.scene;
@@ -415,7 +441,7 @@ impl Solver<'_> {
             self.n_links += extra;
             moved += down.len() as u64;
             for child in self.hierarchy.split(ElementId(r as u32)) {
-                pending.extend(down.iter().map(|l| (child, l.source)));
+                pending.extend(down.iter().map(|l| Pair::refining(child, l.source, false)));
             }
         }
         self.links.resize_with(self.hierarchy.len(), Vec::new);
@@ -425,7 +451,7 @@ impl Solver<'_> {
     /// Evaluates the (receiver, source) pairs in parallel, then keeps the
     /// accepted links, splits for the others and repeats until every new
     /// link is accepted (or the budget stops it). Returns the links split.
-    fn settle_links(&mut self, mut pending: Vec<(ElementId, ElementId)>) -> u64 {
+    fn settle_links(&mut self, mut pending: Vec<Pair>) -> u64 {
         let mut splits = 0;
         while !pending.is_empty() {
             let rays = self.settings.visibility_rays;
@@ -435,22 +461,26 @@ impl Solver<'_> {
             let evaluated: Vec<(Link, u64, Decision)> = pending
                 .par_iter()
                 .with_min_len(8)
-                .map(|&(r, s)| {
+                .map(|p| {
+                    let (r, s) = (p.receiver, p.source);
                     let (re, se) = (&elements[r.index()], &elements[s.index()]);
                     let rho = scene.patches[re.patch as usize].reflectance;
                     let state = self.hierarchy.source_state(s);
                     let skip = |l: &Link| split_at_any_visibility(t, l, re, se, &state, rho);
                     let (mut link, cast) =
-                        evaluate_link(scene, elements, r, s, bvh, rays, seed, skip);
+                        evaluate_link(scene, elements, r, s, bvh, rays, seed, p.whole, skip);
                     let d = decide(t, &link, re, se, &state, rho);
                     if d == Decision::Accept {
-                        sharpen(&mut link, re, se, scene.patches[se.patch as usize].normal);
+                        let tol = sharpen_tolerance(t, &link, re.area, rho, &state);
+                        let n_s = scene.patches[se.patch as usize].normal;
+                        sharpen(&mut link, re, se, n_s, tol);
                     }
                     (link, cast, d)
                 })
                 .collect();
             let mut next = Vec::new();
-            for (&(r, _), (link, cast, decision)) in pending.iter().zip(evaluated) {
+            for (p, (link, cast, decision)) in pending.iter().zip(evaluated) {
+                let r = p.receiver;
                 self.rays += cast;
                 if self.apply(r, link, decision, &mut next) {
                     splits += 1;
@@ -468,12 +498,17 @@ impl Solver<'_> {
                         self.bvh,
                         rays,
                         seed,
+                        p.whole,
                         |_| false,
                     );
                     link = l;
                     let (h, source) = (&self.hierarchy, link.source);
                     let n_s = self.scene.patches[h.get(source).patch as usize].normal;
-                    sharpen(&mut link, h.get(r), h.get(source), n_s);
+                    let (re, se) = (h.get(r), h.get(source));
+                    let rho = self.scene.patches[re.patch as usize].reflectance;
+                    let state = h.source_state(source);
+                    let tol = sharpen_tolerance(&self.thresholds, &link, re.area, rho, &state);
+                    sharpen(&mut link, re, se, n_s, tol);
                     self.rays += c;
                 }
                 if link.coupling() > 0.0 {
@@ -495,7 +530,7 @@ impl Solver<'_> {
         let scene = self.scene;
         let tol = 1e-9 * scene.diagonal();
         let n = scene.patches.len();
-        let pairs: Vec<(ElementId, ElementId)> = (0..n)
+        let pairs: Vec<Pair> = (0..n)
             .into_par_iter()
             .flat_map_iter(|r| {
                 let pr = &scene.patches[r];
@@ -509,7 +544,11 @@ impl Solver<'_> {
                             ps.normal,
                             tol,
                         ))
-                    .then_some((ElementId(r as u32), ElementId(s as u32)))
+                    .then_some(Pair::refining(
+                        ElementId(r as u32),
+                        ElementId(s as u32),
+                        false,
+                    ))
                 })
             })
             .collect();
@@ -557,7 +596,7 @@ impl Solver<'_> {
                 self.n_links += extra;
                 moved += down.len() as u64;
                 for child in self.hierarchy.split(id) {
-                    pending.extend(down.iter().map(|l| (child, l.source)));
+                    pending.extend(down.iter().map(|l| Pair::refining(child, l.source, false)));
                     next.push(child);
                 }
             }
@@ -640,7 +679,7 @@ impl Solver<'_> {
             self.n_links += extra;
             for child in self.hierarchy.split(k) {
                 for l in &down {
-                    pending.push((child, l.source));
+                    pending.push(Pair::refining(child, l.source, l.wholly_visible()));
                 }
             }
         }
@@ -966,6 +1005,12 @@ fn segment_crosses(vertices: &[DVec3], normal: DVec3, a: DVec3, b: DVec3, tol: f
 /// Visibility rays per partly visible link in [`point_radiosity`].
 pub const POINT_RAYS: usize = 16;
 
+/// A partly visible link whose light at a point, ρ F B, is below this
+/// fraction of the brightness threshold `bf_eps` keeps its own visible
+/// fraction in [`point_radiosity`]: the point's rays could move the value
+/// by less than that.
+pub const DIM_LINK_FRACTION: f64 = 0.2;
+
 /// Visibility rays per emitter patch for the direct light at a point...
 pub const DIRECT_RAYS: usize = 64;
 
@@ -993,9 +1038,10 @@ pub struct PointGather<'a> {
 /// Radiosity at point `x` of leaf `leaf` by a final gather over the links
 /// of the leaf and its ancestors: each link's source contributes its exact
 /// point-to-polygon form factor from `x` (not the link's mean over its
-/// receiver) times its radiosity, and, for a partly visible link, the
-/// kernel-weighted visible fraction of [`POINT_RAYS`] rays from `x`
-/// (seeded by `seed`, the leaf and the source: deterministic). `gather`
+/// receiver) times its radiosity, and, for a partly visible link not too
+/// dim to matter ([`DIM_LINK_FRACTION`]), the kernel-weighted visible
+/// fraction of [`POINT_RAYS`] rays from `x` (seeded by `seed`, the leaf
+/// and the source: deterministic). `gather`
 /// says which links cast rays and which emitters are gathered directly.
 /// `x` is moved a millionth of the way toward the leaf's centroid first,
 /// so that a point on an edge takes its value from inside the leaf.
@@ -1021,6 +1067,7 @@ pub fn point_radiosity(
         let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
         (total > 0.0).then(|| seen / total)
     };
+    let dim_light = DIM_LINK_FRACTION * solution.thresholds.bf_eps;
     let mut irradiance = DVec3::ZERO;
     for &k in gather.direct {
         let emitter = &scene.patches[k as usize];
@@ -1058,7 +1105,8 @@ pub fn point_radiosity(
             if !(f > 0.0) {
                 continue;
             }
-            let v = if gather.every_link || l.partly_visible() {
+            let dim = (patch.reflectance * f * b).max_element() < dim_light;
+            let v = if gather.every_link || (l.partly_visible() && !dim) {
                 visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
                     .unwrap_or(l.visibility())
             } else {

@@ -25,7 +25,7 @@
 
 use glam::DVec3;
 
-use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_with};
+use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_checked};
 use crate::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
@@ -82,6 +82,11 @@ impl Link {
     /// True when some but not all visibility rays were blocked.
     pub fn partly_visible(&self) -> bool {
         self.visibility > 0 && self.visibility < u16::MAX
+    }
+
+    /// True when no ray was blocked: the link saw its source whole.
+    pub fn wholly_visible(&self) -> bool {
+        self.visibility == u16::MAX && self.spread == 0
     }
 
     /// The coupling F·V the gather uses.
@@ -153,8 +158,10 @@ pub fn weighted_visibility(
 /// differ only by where they are: the spread measures a shadow edge, not
 /// sampling noise), each ray weighted by the
 /// kernel cos θ_x cos θ_y / r², so that both the kernel-weighted visible
-/// fraction and its spread over the receiver are known. Returns the link
-/// and the rays cast.
+/// fraction and its spread over the receiver are known. When `parent_whole`
+/// says the link this one refines saw its source whole, one ray per
+/// quarter probes first, and the link is wholly visible when none is
+/// blocked ([`sample_visibility`]). Returns the link and the rays cast.
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_link(
     scene: &Scene,
@@ -164,6 +171,7 @@ pub fn evaluate_link(
     bvh: &TriangleBvh,
     rays: usize,
     seed: u64,
+    parent_whole: bool,
     skip_visibility: impl Fn(&Link) -> bool,
 ) -> (Link, u64) {
     let r = &elements[r_id.index()];
@@ -201,26 +209,33 @@ pub fn evaluate_link(
     // floor around the base of a box, beside a face that leans away). The
     // quadrature decides.
     if !(f > 0.0) && hi > 0.0 {
-        f = exact_form_factor(r, s, n_s, 0.01 * hi).unwrap_or(0.0);
+        f = exact_form_factor(r, s, n_s, 0.01 * hi, None).unwrap_or(0.0);
     }
     let mut link = Link::new(s_id, f, hi - lo, 0.0, 0.0);
     if !(f > 0.0) || skip_visibility(&link) {
         return (link, 0);
     }
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
-    let (v, spread, cast) = sample_visibility(scene, r, s, bvh, rays, &mut rng);
+    let (v, spread, cast) = sample_visibility(scene, r, s, bvh, rays, parent_whole, &mut rng);
     link = Link::new(s_id, f, hi - lo, v, spread);
     (link, cast)
 }
 
 /// The kernel-weighted visible fraction of `s` from `r` and its spread
 /// over `r`'s quarters (see [`evaluate_link`]), and the rays cast.
+///
+/// With `probe`, one ray per quarter goes first, from strata spread over
+/// the sample pattern; when none is blocked the pair is taken as wholly
+/// visible. Used for the children of a wholly visible link, whose ray pairs
+/// are a subset of the pairs its parent's rays sampled: a probe that finds
+/// a blocker falls back to the full set.
 fn sample_visibility(
     scene: &Scene,
     r: &Element,
     s: &Element,
     bvh: &TriangleBvh,
     rays: usize,
+    probe: bool,
     rng: &mut impl rand::Rng,
 ) -> (f64, f64, u64) {
     let n_r = scene.patches[r.patch as usize].normal;
@@ -237,6 +252,19 @@ fn sample_visibility(
         .collect();
     let quarters = split_corners(r.shape, &r.corners);
     let n = r.vertices().len();
+    let mut probed = 0;
+    if probe {
+        let clear = quarters.iter().enumerate().all(|(k, quarter)| {
+            let j = k * per_quarter / 4;
+            let x = point_in_polygon(&quarter[..n], from[j]);
+            let (w, seen) = weighted_visibility(bvh, std::iter::once((x, targets[j])), n_r, n_s);
+            seen == w
+        });
+        probed = 4;
+        if clear {
+            return (1.0, 0.0, probed);
+        }
+    }
     // Per quarter, the kernel-weighted visibility sums: V (their ratio
     // over all quarters) is what scales the unoccluded form factor.
     let sums = quarters.map(|quarter| {
@@ -257,7 +285,7 @@ fn sample_visibility(
         .map(|k| seen[k] / weight[k])
         .fold((1.0f64, 0.0f64), |(lo, hi), q| (lo.min(q), hi.max(q)));
     let spread = (max - min).max(0.0);
-    (v, spread, total as u64)
+    (v, spread, probed + total as u64)
 }
 
 /// Integrand evaluations [`sharpen`] may spend on one link.
@@ -267,13 +295,23 @@ const SHARPEN_EVALUATIONS: usize = 600;
 /// of the exact inner integral when the point values spread by more than a
 /// tenth of it (close or touching elements, where the midpoint rule is
 /// biased). The oracle bounds how F varies over the receiver; this makes
-/// its mean right, so that energy is conserved over the hierarchy.
-pub fn sharpen(link: &mut Link, receiver: &Element, source: &Element, source_normal: DVec3) {
-    let f = link.form_factor as f64;
-    if !(link.error as f64 > 0.1 * f) {
+/// its mean right, so that energy is conserved over the hierarchy. The
+/// quadrature's tolerance is `tolerance` (see [`sharpen_tolerance`]).
+pub fn sharpen(
+    link: &mut Link,
+    receiver: &Element,
+    source: &Element,
+    source_normal: DVec3,
+    tolerance: f64,
+) {
+    // The exact mean lies within the spread of the point values (nearly:
+    // they sample F's extremes): a spread within the tolerance needs
+    // nothing.
+    let (f, spread) = (link.form_factor as f64, link.error as f64);
+    if !(spread > 0.1 * f) || !(spread > tolerance) {
         return;
     }
-    if let Some(exact) = exact_form_factor(receiver, source, source_normal, 0.01 * f) {
+    if let Some(exact) = exact_form_factor(receiver, source, source_normal, tolerance, Some(f)) {
         link.form_factor = exact as f32;
     }
 }
@@ -286,12 +324,14 @@ fn exact_form_factor(
     source: &Element,
     source_normal: DVec3,
     tolerance: f64,
+    guess: Option<f64>,
 ) -> Option<f64> {
-    let exact = form_factor_polygon_polygon_with(
+    let exact = form_factor_polygon_polygon_checked(
         receiver.vertices(),
         source.vertices(),
         tolerance,
         SHARPEN_EVALUATIONS,
+        guess,
         |x| f64::from(u8::from((x - source.corners[0]).dot(source_normal) > 0.0)),
     );
     exact.value.is_finite().then(|| exact.value.clamp(0.0, 1.0))
@@ -405,6 +445,33 @@ pub fn link_error(
             (rho_b * (v * f_err + v_err * (f + f_err)) + uneven, t.bf_eps)
         }
         Oracle::Power => (receiver_area * f * v * rho_b, t.power_eps),
+    }
+}
+
+/// How closely [`sharpen`] integrates a link's form factor: to 1 % of it,
+/// or, when looser, to an error in F that moves the oracle's measure by
+/// 1 % of its threshold (for the brightness and power oracles, given the
+/// source's current radiosity; a source still dark integrates to 1 %).
+/// Bias summed over a receiver's links then stays a small part of what
+/// the oracle tolerates for each, while dim links spend little.
+pub fn sharpen_tolerance(
+    t: &Thresholds,
+    link: &Link,
+    receiver_area: f64,
+    receiver_reflectance: DVec3,
+    source: &SourceState,
+) -> f64 {
+    let relative = 0.01 * link.form_factor as f64;
+    let rho_b = (receiver_reflectance * source.radiosity).max_element();
+    let (per_unit_f, eps) = match t.oracle {
+        Oracle::Ff => (1.0, t.ff_eps),
+        Oracle::Bf => (rho_b * link.visibility(), t.bf_eps),
+        Oracle::Power => (receiver_area * rho_b * link.visibility(), t.power_eps),
+    };
+    if per_unit_f > 0.0 && eps > 0.0 {
+        relative.max(0.01 * eps / per_unit_f)
+    } else {
+        relative
     }
 }
 

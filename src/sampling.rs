@@ -45,9 +45,19 @@ pub fn stratified(n: usize, rng: &mut impl Rng) -> Vec<DVec2> {
 /// rescaled, then the square-root mapping places the point in the triangle.
 pub fn point_in_polygon(polygon: &[DVec3], s: DVec2) -> DVec3 {
     let p0 = polygon[0];
-    let areas: Vec<f64> = (1..polygon.len() - 1)
-        .map(|i| (polygon[i] - p0).cross(polygon[i + 1] - p0).length())
-        .collect();
+    // Element polygons are small: their fan areas stay on the stack.
+    let fan = polygon.len() - 2;
+    let mut small = [0.0; 8];
+    let mut large = Vec::new();
+    let areas: &mut [f64] = if fan <= small.len() {
+        &mut small[..fan]
+    } else {
+        large.resize(fan, 0.0);
+        &mut large
+    };
+    for (i, a) in areas.iter_mut().enumerate() {
+        *a = (polygon[i + 1] - p0).cross(polygon[i + 2] - p0).length();
+    }
     let total: f64 = areas.iter().sum();
     let mut x = s.x * total;
     let mut tri = areas.len() - 1;

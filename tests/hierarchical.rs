@@ -351,7 +351,9 @@ fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
             f64::from(u8::from((x - se.corners[0]).dot(n_s) > 0.0))
         })
         .value;
-    let (link, _) = evaluate_link(&scene, &h.elements, floor, face, &bvh, 32, 0, |_| false);
+    let (link, _) = evaluate_link(&scene, &h.elements, floor, face, &bvh, 32, 0, false, |_| {
+        false
+    });
     let f = f64::from(link.form_factor);
     assert!(exact > 1e-3, "{exact}");
     assert!((f - exact).abs() < 0.05 * exact, "F {f} against {exact}");
