@@ -15,6 +15,7 @@ mod output;
 mod penumbra;
 mod reference;
 mod scenes;
+mod stress;
 mod study;
 mod triangulate;
 mod util;

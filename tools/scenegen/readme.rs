@@ -10,6 +10,7 @@ use glam::{DAffine3, DVec3};
 
 use super::encode::index_mesh;
 use super::model::{BufferStorage, SceneDef};
+use super::stress::StressScene;
 
 fn rgb(c: [f64; 3]) -> String {
     format!("({}, {}, {})", num(c[0]), num(c[1]), num(c[2]))
@@ -56,10 +57,28 @@ fn triangle_area(t: &[DVec3; 3]) -> f64 {
     0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()
 }
 
-fn scene_section(out: &mut String, scene: &SceneDef) -> Result<()> {
+/// Total triangle count of the nodes reachable from the roots.
+fn triangle_count(s: &SceneDef) -> usize {
+    let world = world_transforms(s);
+    s.nodes
+        .iter()
+        .enumerate()
+        .filter(|(n, _)| world[*n].is_some())
+        .filter_map(|(_, node)| node.mesh)
+        .map(|m| s.meshes[m].triangles.len())
+        .sum()
+}
+
+/// One scene's section; `dir` prefixes its file names in the heading
+/// (empty, or a folder with a trailing `/`); `notes` are extra paragraphs
+/// after the description.
+fn scene_section(out: &mut String, scene: &SceneDef, dir: &str, notes: &[String]) -> Result<()> {
     let world = world_transforms(scene);
-    writeln!(out, "## {} (`{}.gltf`)\n", scene.title, scene.stem)?;
+    writeln!(out, "## {} (`{dir}{}.gltf`)\n", scene.title, scene.stem)?;
     writeln!(out, "{}\n", scene.about)?;
+    for note in notes {
+        writeln!(out, "{note}\n")?;
+    }
     match scene.storage {
         BufferStorage::External => writeln!(
             out,
@@ -176,8 +195,8 @@ Emitted power Σ E·A = {} W per channel.\n",
     Ok(())
 }
 
-/// The whole README.
-pub fn readme(scenes: &[SceneDef]) -> Result<String> {
+/// The whole README: the bundled scenes, then the stress scenes.
+pub fn readme(scenes: &[SceneDef], stress: &[StressScene]) -> Result<String> {
     let mut out = String::new();
     writeln!(out, "# Bundled scenes\n")?;
     writeln!(
@@ -202,15 +221,7 @@ one perspective camera node, which looks down its local −z.\n"
     writeln!(out, "| scene | title | triangles | buffer |")?;
     writeln!(out, "|---|---|---|---|")?;
     for s in scenes {
-        let world = world_transforms(s);
-        let tris: usize = s
-            .nodes
-            .iter()
-            .enumerate()
-            .filter(|(n, _)| world[*n].is_some())
-            .filter_map(|(_, node)| node.mesh)
-            .map(|m| s.meshes[m].triangles.len())
-            .sum();
+        let tris = triangle_count(s);
         let buffer = match s.storage {
             BufferStorage::External => format!("`{}.bin`", s.stem),
             BufferStorage::Embedded => "embedded (base64)".to_owned(),
@@ -221,9 +232,51 @@ one perspective camera node, which looks down its local −z.\n"
             s.stem, s.title, tris, buffer
         )?;
     }
-    writeln!(out)?;
+    writeln!(
+        out,
+        "The stress scenes of `stress/` are listed [at the end](#stress-scenes).\n"
+    )?;
     for s in scenes {
-        scene_section(&mut out, s)?;
+        scene_section(&mut out, s, "", &[])?;
     }
+    stress_part(&mut out, stress)?;
     Ok(out)
+}
+
+/// The stress scenes: a summary table, then one section each.
+fn stress_part(out: &mut String, stress: &[StressScene]) -> Result<()> {
+    writeln!(out, "# Stress scenes\n")?;
+    writeln!(
+        out,
+        "The scenes in `stress/` sit where radiosity methods are known to fail: near \
+contact, interpenetration, coplanar overlap, slivers, extreme scale ranges, reflectance near \
+1, light that reaches nothing, open scenes, thousands of emitters and a singular kernel. Each \
+is small, so that the tests in `tests/stress.rs` solve a fast subset of them in seconds and \
+check the invariants every method must keep there: no panic, finite and non-negative \
+outputs, no energy created, non-convergence reported. The conventions are those above; \
+unlike the bundled scenes, some stress scenes overlap or interpenetrate on purpose. \
+\"Expected to struggle\" is the literature's and our expectation, not a measurement.\n"
+    )?;
+    writeln!(out, "| scene | title | triangles | stresses |")?;
+    writeln!(out, "|---|---|---|---|")?;
+    for s in stress {
+        let first = s.stresses.split(':').next().unwrap_or(s.stresses);
+        writeln!(
+            out,
+            "| `stress/{}.gltf` | {} | {} | {} |",
+            s.scene.stem,
+            s.scene.title,
+            triangle_count(&s.scene),
+            first
+        )?;
+    }
+    writeln!(out)?;
+    for s in stress {
+        let notes = [
+            format!("**Stresses:** {}", s.stresses),
+            format!("**Expected to struggle:** {}", s.struggles),
+        ];
+        scene_section(out, &s.scene, "stress/", &notes)?;
+    }
+    Ok(())
 }
