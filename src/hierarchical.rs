@@ -472,8 +472,9 @@ impl Solver<'_> {
                     let d = decide(t, &link, re, se, &state, rho);
                     if d == Decision::Accept {
                         let tol = sharpen_tolerance(t, &link, re.area, rho, &state);
-                        let n_s = scene.patches[se.patch as usize].normal;
-                        sharpen(&mut link, re, se, n_s, tol);
+                        let normal =
+                            |e: &crate::hierarchy::Element| scene.patches[e.patch as usize].normal;
+                        sharpen(&mut link, re, normal(re), se, normal(se), tol);
                     }
                     (link, cast, d)
                 })
@@ -508,7 +509,8 @@ impl Solver<'_> {
                     let rho = self.scene.patches[re.patch as usize].reflectance;
                     let state = h.source_state(source);
                     let tol = sharpen_tolerance(&self.thresholds, &link, re.area, rho, &state);
-                    sharpen(&mut link, re, se, n_s, tol);
+                    let n_r = self.scene.patches[re.patch as usize].normal;
+                    sharpen(&mut link, re, n_r, se, n_s, tol);
                     self.rays += c;
                 }
                 if link.coupling() > 0.0 {

@@ -18,7 +18,10 @@
 //! inner integral, which is zero behind the source's plane), replaced by
 //! an adaptive quadrature when the points disagree by more than 10 %
 //! ([`sharpen`]); F_err = max − min of the point values at those centroids
-//! and at the receiver's corners.
+//! and at the receiver's corners. A source smaller than its receiver is
+//! also sampled at its own points (reciprocity): when that disagrees, the
+//! quadrature over the smaller element decides. Quadratures always run
+//! over the smaller element.
 //! Visibility: the kernel-weighted unoccluded fraction of N rays between
 //! stratified points of the two elements, and its spread over the
 //! receiver's quarters (a shadow edge crossing it).
@@ -209,15 +212,37 @@ pub fn evaluate_link(
     // floor around the base of a box, beside a face that leans away). The
     // quadrature decides.
     if !(f > 0.0) && hi > 0.0 {
-        f = exact_form_factor(r, s, n_s, 0.01 * hi, None).unwrap_or(0.0);
+        f = exact_form_factor(r, n_r, s, n_s, 0.01 * hi, None).unwrap_or(0.0);
     }
-    let mut link = Link::new(s_id, f, hi - lo, 0.0, 0.0);
+    // A source smaller than its receiver: the receiver's points may all lie
+    // far from where its light falls (a small lamp next to a wall). By
+    // reciprocity, F_rs = (A_s / A_r) F_sr with F_sr from the source's own
+    // points. When the two disagree, the quadrature over the source decides,
+    // and the receiver's F varies at least as much as they differ.
+    let mut spread = hi - lo;
+    if s.area < r.area {
+        let (ys, ws) = receiver_points(s);
+        let f_sr: f64 = ys
+            .iter()
+            .zip(ws)
+            .filter(|(y, _)| (**y - r.corners[0]).dot(n_r) > 0.0)
+            .map(|(y, wk)| wk * form_factor_point_polygon(*y, n_s, r.vertices()))
+            .sum();
+        let f_rec = s.area / r.area * f_sr;
+        if (f_rec - f).abs() > 0.1 * f.max(f_rec) {
+            let tol = 0.01 * f.max(f_rec);
+            let exact = exact_form_factor(r, n_r, s, n_s, tol, None).unwrap_or(f_rec);
+            spread = spread.max((exact - f).abs());
+            f = exact;
+        }
+    }
+    let mut link = Link::new(s_id, f, spread, 0.0, 0.0);
     if !(f > 0.0) || skip_visibility(&link) {
         return (link, 0);
     }
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
-    let (v, spread, cast) = sample_visibility(scene, r, s, bvh, rays, parent_whole, &mut rng);
-    link = Link::new(s_id, f, hi - lo, v, spread);
+    let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, parent_whole, &mut rng);
+    link = Link::new(s_id, f, link.error as f64, v, v_spread);
     (link, cast)
 }
 
@@ -300,6 +325,7 @@ const SHARPEN_EVALUATIONS: usize = 600;
 pub fn sharpen(
     link: &mut Link,
     receiver: &Element,
+    receiver_normal: DVec3,
     source: &Element,
     source_normal: DVec3,
     tolerance: f64,
@@ -311,30 +337,53 @@ pub fn sharpen(
     if !(spread > 0.1 * f) || !(spread > tolerance) {
         return;
     }
-    if let Some(exact) = exact_form_factor(receiver, source, source_normal, tolerance, Some(f)) {
+    if let Some(exact) = exact_form_factor(
+        receiver,
+        receiver_normal,
+        source,
+        source_normal,
+        tolerance,
+        Some(f),
+    ) {
         link.form_factor = exact as f32;
     }
 }
 
 /// The unoccluded form factor receiver → source by adaptive quadrature of
-/// the exact inner integral (zero behind the source's plane), to
-/// `tolerance`, in [0, 1]; `None` when the quadrature fails.
+/// the exact inner integral (zero behind the far element's plane), to
+/// `tolerance`, in [0, 1], with `guess` the midpoint rule's value; `None`
+/// when the quadrature fails. The outer integral runs over the smaller of
+/// the two elements (F_rs = (A_s / A_r) F_sr): its points see the larger
+/// one smoothly, where the larger one's points may miss a small source's
+/// light altogether.
 fn exact_form_factor(
     receiver: &Element,
+    receiver_normal: DVec3,
     source: &Element,
     source_normal: DVec3,
     tolerance: f64,
     guess: Option<f64>,
 ) -> Option<f64> {
+    let (near, far, far_normal, scale) = if source.area < receiver.area {
+        (
+            source,
+            receiver,
+            receiver_normal,
+            source.area / receiver.area,
+        )
+    } else {
+        (receiver, source, source_normal, 1.0)
+    };
     let exact = form_factor_polygon_polygon_checked(
-        receiver.vertices(),
-        source.vertices(),
-        tolerance,
+        near.vertices(),
+        far.vertices(),
+        tolerance / scale,
         SHARPEN_EVALUATIONS,
-        guess,
-        |x| f64::from(u8::from((x - source.corners[0]).dot(source_normal) > 0.0)),
+        guess.map(|g| g / scale),
+        |x| f64::from(u8::from((x - far.corners[0]).dot(far_normal) > 0.0)),
     );
-    exact.value.is_finite().then(|| exact.value.clamp(0.0, 1.0))
+    let value = exact.value * scale;
+    value.is_finite().then(|| value.clamp(0.0, 1.0))
 }
 
 /// What the oracle says about a link.

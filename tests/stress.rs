@@ -439,3 +439,23 @@ fn slow_scenes_keep_the_invariants() {
         );
     }
 }
+
+#[test]
+fn a_lamp_next_to_a_wall_delivers_its_power_to_the_closed_room() {
+    // A 1 cm² emitter 2 mm from a wall: the wall's own sample points are all
+    // far from the hot spot, and the form factor estimated from them alone
+    // is about 10⁵ times too small (measured before the reciprocal check:
+    // 0.001 % of the power absorbed). The room is closed: absorbed = emitted.
+    let scene = stress_scene("tiny-emitter");
+    for (name, accuracy) in [
+        ("preview", Accuracy::preview()),
+        ("default", Accuracy::default()),
+    ] {
+        let run = run_checked("tiny-emitter", &scene, &hierarchical(accuracy), ENERGY_TOL);
+        let (e, a) = (run.report.power.emitted[0], run.report.power.absorbed[0]);
+        // Measured: 0.995 (preview), 0.969 (default). KNOWN WEAKNESS: the
+        // high preset reaches only 0.81 (the minimum element, 1.4 cm, is
+        // as large as the lamp; not yet explained).
+        assert!(a > 0.95 * e, "{name}: absorbed {a} W of {e} W");
+    }
+}
