@@ -12,6 +12,10 @@
 //!   ([`accessor::check`]) before it is read, node hierarchies are walked
 //!   iteratively and each node at most once (cycles and shared children are
 //!   errors), and the total triangle count is capped ([`MAX_TRIANGLES`]).
+//!   External URIs must name regular files (a device or FIFO would be read
+//!   without end), and data URIs must carry the MIME type of their role.
+//! - World-space positions lie within ±[`MAX_COORDINATE`] (the range the f32
+//!   visibility structures handle), else the primitive is refused.
 //! - Positions and transforms are f64 from the first multiplication on.
 //! - Triangles leave counter-clockwise seen from their front in world space:
 //!   a node whose world transform has a negative determinant gets its
@@ -34,7 +38,7 @@ use gltf::{Document, Semantic};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::scene::{Camera, InputTriangle, Material, Scene, Surface};
+use crate::scene::{Camera, InputTriangle, MAX_COORDINATE, Material, Scene, Surface};
 
 use self::accessor::Expect;
 use self::texture::{Sampler, Texture, UvTransform};
@@ -106,7 +110,7 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
     }
     let scene_error = |message: String| Error::scene(path, message);
     let (document, blob) = parse(bytes).map_err(scene_error)?;
-    check_uris(&document).map_err(scene_error)?;
+    check_uris(&document, base).map_err(scene_error)?;
     let buffers = gltf::import_buffers(&document, base, blob)
         .map_err(|e| scene_error(format!("cannot load buffers: {}", describe(&e))))?;
     let mut loader = Loader {
@@ -202,20 +206,68 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
     Ok((document, blob))
 }
 
-/// The `gltf` crate decodes percent-escapes of relative URIs with an
-/// `unwrap`: refuse URIs whose escapes are not UTF-8 first.
-fn check_uris(document: &Document) -> Result<(), String> {
+/// Checks buffer and image URIs before `gltf` reads them: percent-escapes
+/// must decode as UTF-8 (`gltf` unwraps the decoding), a data URI must name
+/// a MIME type its role accepts, and an external file (resolved against
+/// `base`) must be a regular file, so that its size bounds what is read.
+fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
+    const BUFFER_TYPES: &[&str] = &["application/octet-stream", "application/gltf-buffer"];
+    const IMAGE_TYPES: &[&str] = &["image/png", "image/jpeg"];
     let buffer_uris = document.buffers().filter_map(|b| match b.source() {
-        gltf::buffer::Source::Uri(uri) => Some((format!("buffer {}", b.index()), uri)),
+        gltf::buffer::Source::Uri(uri) => {
+            Some((format!("buffer {}", b.index()), uri, BUFFER_TYPES))
+        }
         gltf::buffer::Source::Bin => None,
     });
     let image_uris = document.images().filter_map(|i| match i.source() {
-        gltf::image::Source::Uri { uri, .. } => Some((format!("image {}", i.index()), uri)),
+        gltf::image::Source::Uri { uri, .. } => {
+            Some((format!("image {}", i.index()), uri, IMAGE_TYPES))
+        }
         gltf::image::Source::View { .. } => None,
     });
-    for (what, uri) in buffer_uris.chain(image_uris) {
-        if !uri.contains(':') && urlencoding::decode(uri).is_err() {
-            return Err(format!("{what}: URI '{uri}' has invalid percent-escapes"));
+    for (what, uri, types) in buffer_uris.chain(image_uris) {
+        if let Some(rest) = uri.strip_prefix("data:") {
+            let mime = rest.split([';', ',']).next().unwrap_or("");
+            if !types.contains(&mime) {
+                return Err(format!(
+                    "{what}: data URI has MIME type '{}', expected one of {}",
+                    short(mime),
+                    types.join(", ")
+                ));
+            }
+            if !rest.contains(";base64,") {
+                return Err(format!("{what}: data URI is not base64-encoded"));
+            }
+            continue;
+        }
+        let path = if let Some(rest) = uri.strip_prefix("file:") {
+            std::path::PathBuf::from(rest.strip_prefix("//").unwrap_or(rest))
+        } else if uri.contains(':') {
+            continue; // an unsupported scheme: `gltf` reports it
+        } else {
+            match urlencoding::decode(uri) {
+                Ok(decoded) => Path::new(decoded.as_ref()).to_path_buf(),
+                Err(_) => {
+                    return Err(format!(
+                        "{what}: URI '{}' has invalid percent-escapes",
+                        short(uri)
+                    ));
+                }
+            }
+        };
+        let Some(base) = base else { continue }; // `gltf` refuses it
+        let full = base.join(&path);
+        let shown = short(&full.display().to_string());
+        match std::fs::metadata(&full) {
+            Ok(meta) if !meta.is_file() => {
+                return Err(format!("{what}: '{shown}' is not a regular file"));
+            }
+            Ok(_) => {}
+            // An image is read only when a material uses it.
+            Err(e) if what.starts_with("buffer") => {
+                return Err(format!("{what}: cannot read '{shown}': {e}"));
+            }
+            Err(_) => {}
         }
     }
     Ok(())
@@ -411,7 +463,14 @@ impl Loader<'_> {
             if !p.iter().all(|c| c.is_finite()) {
                 return Err(format!("vertex {i} has a non-finite position {p:?}"));
             }
-            positions.push(world.transform_point3(DVec3::from_array(p.map(f64::from))));
+            let world_p = world.transform_point3(DVec3::from_array(p.map(f64::from)));
+            if !(world_p.abs().max_element() <= MAX_COORDINATE) {
+                return Err(format!(
+                    "vertex {i} lies at {world_p} in world space, beyond the supported \
+                     ±{MAX_COORDINATE:e} m"
+                ));
+            }
+            positions.push(world_p);
         }
 
         let indices: Vec<u32> = match primitive.indices() {

@@ -496,3 +496,114 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     set.stage("report.json", &output::write_json(&run.report)?)?;
     set.commit()
 }
+
+/// Largest relative excess of absorbed over emitted power that
+/// [`fuzz_pipeline`] accepts (per channel): preview accuracy on arbitrary
+/// geometry (touching, penetrating, coplanar overlapping polygons).
+pub const FUZZ_ENERGY_TOL: f64 = 0.05;
+
+/// The body of the `pipeline` fuzz target: bytes become a tiny scene of one
+/// to four parallelograms and up to three triangles (positions on a 1/32
+/// grid of ±4, at a scale from 1 mm to 1 km, random reflectances, emissions
+/// and sidedness, the first polygon always emitting), which is solved
+/// hierarchically at preview accuracy and rendered at 12×8.
+///
+/// Returns an error when a result breaks an invariant: a non-finite or
+/// negative radiosity or pixel, an output mesh that does not validate, or
+/// absorbed power above the emitted power by more than [`FUZZ_ENERGY_TOL`].
+/// A scene the library refuses (every polygon degenerate) is not an error.
+/// It never panics by itself; a panic inside the library is a finding.
+pub fn fuzz_pipeline(data: &[u8]) -> std::result::Result<(), String> {
+    use crate::hierarchical::Accuracy;
+    use crate::scene::{InputTriangle, Material, Surface};
+
+    let mut bytes = data.iter().copied();
+    let mut next = move || bytes.next().unwrap_or(0);
+    let coord = |b: u8| f64::from(b) / 32.0 - 4.0;
+    let scale = 10f64.powi(i32::from(next() % 7) - 3);
+    let quads = 1 + usize::from(next() % 4);
+    let triangles = usize::from(next() % 4);
+    let mut input = Vec::new();
+    let mut materials = Vec::new();
+    let mut surfaces = Vec::new();
+    for k in 0..quads + triangles {
+        let mut point = || DVec3::new(coord(next()), coord(next()), coord(next())) * scale;
+        let (o, a, b) = (point(), point(), point());
+        let corners = if k < quads {
+            vec![[o, o + a, o + a + b], [o, o + a + b, o + b]]
+        } else {
+            vec![[o, o + a, o + b]]
+        };
+        let flags = next();
+        let reflectance = DVec3::new(
+            f64::from(next()) / 256.0,
+            f64::from(next()) / 256.0,
+            f64::from(next()) / 256.0,
+        );
+        let emits = k == 0 || flags & 1 == 1;
+        let emitted_radiance = if emits {
+            DVec3::new(
+                f64::from(next()) / 16.0 + 0.1,
+                f64::from(next()) / 16.0 + 0.1,
+                f64::from(next()) / 16.0 + 0.1,
+            )
+        } else {
+            DVec3::ZERO
+        };
+        materials.push(Material {
+            name: format!("m{k}"),
+            reflectance,
+            emitted_radiance,
+            double_sided: flags & 2 == 2,
+        });
+        surfaces.push(Surface {
+            name: format!("s{k}"),
+            node: k,
+        });
+        for positions in corners {
+            input.push(InputTriangle {
+                positions,
+                material: k as u32,
+                surface: k as u32,
+                reflectance,
+                emitted_radiance,
+            });
+        }
+    }
+    let Ok(scene) = Scene::build(input, materials, surfaces, Vec::new(), Vec::new()) else {
+        return Ok(());
+    };
+    let mut settings = SolveSettings::default();
+    settings.hierarchical.accuracy = Accuracy::preview();
+    settings.view.width = Some(12);
+    settings.view.height = Some(8);
+    settings.render.samples_per_pixel = 1;
+    let run = solve(&scene, &settings, &Progress::new(false)).map_err(|e| e.to_string())?;
+    run.mesh.validate()?;
+    if let Some(v) = run
+        .mesh
+        .radiosity
+        .iter()
+        .find(|b| !(b.is_finite() && b.min_element() >= 0.0))
+    {
+        return Err(format!("output radiosity {v}"));
+    }
+    if let Some(p) = run
+        .frame
+        .pixels
+        .iter()
+        .find(|p| !p.iter().all(|c| c.is_finite() && *c >= 0.0))
+    {
+        return Err(format!("pixel {p:?}"));
+    }
+    let power = &run.report.power;
+    for c in 0..3 {
+        let (e, a) = (power.emitted[c], power.absorbed[c]);
+        if !(e.is_finite() && a.is_finite() && a >= 0.0 && a <= e * (1.0 + FUZZ_ENERGY_TOL)) {
+            return Err(format!(
+                "channel {c}: absorbed {a} W against emitted {e} W (tolerance {FUZZ_ENERGY_TOL})"
+            ));
+        }
+    }
+    Ok(())
+}

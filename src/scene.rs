@@ -26,6 +26,8 @@
 //!   P(u,v) bilinear, u,v in [0,1]     P(u,v) = p0 + u(p1-p0) + v(p2-p0), u+v <= 1
 //! ```
 //! - A scene always has at least one patch and one emitting patch.
+//! - Every vertex coordinate is finite and at most [`MAX_COORDINATE`] in
+//!   magnitude.
 
 use std::collections::HashMap;
 
@@ -195,6 +197,17 @@ pub struct Scene {
     pub warnings: Vec<String>,
 }
 
+/// Largest accepted magnitude of a world-space vertex coordinate, in metres.
+///
+/// Visibility runs in f32 (the BVH and its rays): extents, surface areas
+/// (squared extents) and area sums over up to [`crate::load::MAX_TRIANGLES`]
+/// primitives must stay finite there, and coordinates near `f32::MAX` make
+/// the BVH builder panic. With |x| ≤ 10¹² m a box is at most 2·10¹² m wide,
+/// a surface area 3·(2·10¹²)² ≈ 1.2·10²⁵ m², and 2²⁵ of those sum to about
+/// 4·10³² — six orders of magnitude below `f32::MAX` (3.4·10³⁸). Real
+/// scenes (a planet is 10⁷ m across) are far inside the bound.
+pub const MAX_COORDINATE: f64 = 1e12;
+
 /// Relative tolerances of scene building, as fractions of the scene diagonal.
 const DEGENERATE_HEIGHT: f64 = 1e-9;
 const COPLANAR_DISTANCE: f64 = 1e-7;
@@ -204,8 +217,9 @@ const COPLANAR_ANGLE: f64 = 1e-6;
 const CONVEX_SIN: f64 = 1e-6;
 
 impl Scene {
-    /// Builds patches from loaded triangles. Fails when nothing usable is
-    /// left or nothing emits.
+    /// Builds patches from loaded triangles. Fails when a vertex coordinate
+    /// is not finite or exceeds [`MAX_COORDINATE`] (naming the surface and
+    /// triangle), when nothing usable is left or when nothing emits.
     pub fn build(
         input: Vec<InputTriangle>,
         materials: Vec<Material>,
@@ -213,6 +227,24 @@ impl Scene {
         cameras: Vec<Camera>,
         mut warnings: Vec<String>,
     ) -> Result<Scene> {
+        if let Some((i, t)) = input.iter().enumerate().find(|(_, t)| {
+            t.positions
+                .iter()
+                .any(|p| !(p.abs().max_element() <= MAX_COORDINATE))
+        }) {
+            let surface = surfaces.get(t.surface as usize).map_or_else(
+                || format!("surface {}", t.surface),
+                |s| format!("surface '{}'", s.name),
+            );
+            return Err(Error::scene(
+                "<scene>",
+                format!(
+                    "{surface}, input triangle {i}: a vertex coordinate of {:?} is not finite \
+                     or exceeds {MAX_COORDINATE:e} m",
+                    t.positions
+                ),
+            ));
+        }
         let mut stats = SceneStats {
             input_triangles: input.len(),
             ..SceneStats::default()

@@ -214,3 +214,123 @@ fn mesh_flags_are_checked_and_wireframe_touches_only_the_png() {
     assert_eq!(exr, exr_w);
     assert_ne!(png, png_w);
 }
+
+// The hostile-input suite at the command line (issue 7): a representative
+// handful, each one `error:` line and exit code 1. The library-level cases
+// are in tests/loader.rs (`hostile_*`).
+
+#[test]
+fn hostile_huge_coordinates_name_file_and_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut meshes = lit_box();
+    for p in &mut meshes[0].positions {
+        *p = p.map(|c| c * 3e38);
+    }
+    let p = write(dir.path(), "huge.gltf", &gltf_json(&meshes));
+    let out = nusselt(&["solve", &p, "-q", "--accuracy", "preview"], dir.path());
+    assert_user_error(&out, "huge.gltf: mesh 'floor' primitive 0: vertex");
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}
+
+#[test]
+fn hostile_wrong_accessor_type_and_missing_buffer() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = gltf_json(&lit_box());
+    // The first POSITION accessor becomes unsigned bytes.
+    let pos = r#""componentType":5126,"count":4,"type":"VEC3","min":[0,0,0]"#;
+    let bytes = json.replacen(pos, &pos.replace("5126", "5121"), 1);
+    assert_ne!(bytes, json, "the test scene changed shape");
+    let p = write(dir.path(), "u8.gltf", &bytes);
+    assert_user_error(
+        &nusselt(&["solve", &p, "-q"], dir.path()),
+        "u8.gltf: mesh 'floor' primitive 0: POSITION accessor 0 has type Vec3 U8",
+    );
+    // The buffer moves to a file that is not there.
+    let start = json.find("data:application").unwrap();
+    let end = start + json[start..].find('"').unwrap();
+    let missing = format!("{}gone.bin{}", &json[..start], &json[end..]);
+    let p = write(dir.path(), "missing.gltf", &missing);
+    assert_user_error(&nusselt(&["solve", &p, "-q"], dir.path()), "gone.bin");
+}
+
+#[test]
+fn hostile_output_path_that_is_a_file_is_left_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "box.gltf", &gltf_json(&lit_box()));
+    fs::write(dir.path().join("taken"), "keep me").unwrap();
+    let out = nusselt(
+        &["solve", &p, "-q", "-o", "taken", "--accuracy", "preview"],
+        dir.path(),
+    );
+    assert_user_error(&out, "taken");
+    assert_eq!(fs::read(dir.path().join("taken")).unwrap(), b"keep me");
+}
+
+/// A run that fails while putting its files in place (a folder stands where
+/// its last file goes) leaves the earlier run's files byte-identical and no
+/// temporary file behind.
+#[test]
+fn hostile_failure_on_write_keeps_the_earlier_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "box.gltf", &gltf_json(&lit_box()));
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "solve",
+            &p,
+            "-q",
+            "-o",
+            "res",
+            "--accuracy",
+            "preview",
+            "--height",
+            "8",
+        ];
+        args.extend_from_slice(extra);
+        nusselt(&args, dir.path())
+    };
+    let ok = run(&["--width", "8"]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let res = dir.path().join("res");
+    // The snapshot files of the second run are blocked by folders.
+    fs::create_dir(res.join("snapshot-00001.png")).unwrap();
+    fs::write(res.join("snapshot-00001.png").join("inside"), "x").unwrap();
+    let files = list_files;
+    let before = files(&res);
+    assert_eq!(
+        before.len(),
+        6,
+        "{:?}",
+        before.iter().map(|b| &b.0).collect::<Vec<_>>()
+    );
+    // Different settings: every file of the second run would differ.
+    let failed = run(&["--snapshots", "1", "--width", "12"]);
+    assert_user_error(&failed, "snapshot-00001.png");
+    assert_eq!(files(&res), before, "the earlier output changed");
+    let leftovers: Vec<String> = fs::read_dir(&res)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+/// Regular files of `dir` with their bytes, sorted by name.
+fn list_files(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_type().unwrap().is_file())
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}

@@ -100,3 +100,91 @@ fn triangulate_corpus_and_regressions_validate() {
     }
     assert!(failed.is_empty(), "triangulation failed on: {failed:?}");
 }
+
+/// Runs the `pipeline` fuzz target's body on `data`: a panic or a broken
+/// invariant becomes an `Err` naming it.
+fn pipeline_body(data: &[u8]) -> Result<(), String> {
+    match catch_unwind(AssertUnwindSafe(|| nusselt::pipeline::fuzz_pipeline(data))) {
+        Ok(result) => result,
+        Err(_) => Err("panicked".into()),
+    }
+}
+
+/// The `pipeline` fuzz target: its seed corpus and recorded crashes solve
+/// without panicking, with finite non-negative results and no energy
+/// created.
+#[test]
+fn pipeline_corpus_and_regressions_keep_the_invariants() {
+    let corpus = files_in(&fuzz_dir().join("corpus/pipeline"));
+    assert!(corpus.len() >= 10, "the pipeline seed corpus is missing");
+    let regressions = files_in(&fuzz_dir().join("regressions/pipeline"));
+    let mut failed = Vec::new();
+    for file in corpus.iter().chain(&regressions) {
+        let data = std::fs::read(file).expect("readable corpus file");
+        if let Err(e) = pipeline_body(&data) {
+            failed.push(format!("{}: {e}", file.display()));
+        }
+    }
+    assert!(failed.is_empty(), "the pipeline failed on: {failed:?}");
+}
+
+/// Without a fuzzer: the bodies of all three targets over a few thousand
+/// deterministic pseudo-random inputs (random bytes, and mutations of the
+/// seeds). Slow; runs with NUSSELT_SLOW_TESTS=1.
+#[test]
+fn fuzz_bodies_survive_pseudo_random_inputs() {
+    use rand::{Rng, SeedableRng};
+    if std::env::var_os("NUSSELT_SLOW_TESTS").is_none_or(|v| v != "1") {
+        return;
+    }
+    let mut rng = rand_pcg::Pcg32::seed_from_u64(0x6675_7a7a);
+    let seeds = |dir: &str| -> Vec<Vec<u8>> {
+        files_in(&fuzz_dir().join(dir))
+            .iter()
+            .map(|f| std::fs::read(f).unwrap())
+            .collect()
+    };
+    let input = |rng: &mut rand_pcg::Pcg32, seeds: &[Vec<u8>]| -> Vec<u8> {
+        if rng.random_bool(0.5) || seeds.is_empty() {
+            let n = rng.random_range(0..200);
+            (0..n).map(|_| rng.random()).collect()
+        } else {
+            let mut data = seeds[rng.random_range(0..seeds.len())].clone();
+            for _ in 0..rng.random_range(1..8) {
+                if data.is_empty() {
+                    break;
+                }
+                let at = rng.random_range(0..data.len());
+                data[at] = rng.random();
+            }
+            data
+        }
+    };
+    let mut failed = Vec::new();
+    let gltf_seeds = seeds("corpus/load_gltf");
+    for k in 0..2000 {
+        let data = input(&mut rng, &gltf_seeds);
+        if catch_unwind(AssertUnwindSafe(|| fuzz_body(&data))).is_err() {
+            failed.push(format!("load_gltf #{k}: panicked on {data:?}"));
+        }
+    }
+    let tri_seeds = seeds("corpus/triangulate");
+    for k in 0..2000 {
+        let data = input(&mut rng, &tri_seeds);
+        match catch_unwind(AssertUnwindSafe(|| {
+            nusselt::triangulate::fuzz_triangulate(&data)
+        })) {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => failed.push(format!("triangulate #{k}: {e} on {data:?}")),
+            Err(_) => failed.push(format!("triangulate #{k}: panicked on {data:?}")),
+        }
+    }
+    let pipeline_seeds = seeds("corpus/pipeline");
+    for k in 0..1000 {
+        let data = input(&mut rng, &pipeline_seeds);
+        if let Err(e) = pipeline_body(&data) {
+            failed.push(format!("pipeline #{k}: {e} on {data:?}"));
+        }
+    }
+    assert!(failed.is_empty(), "{} failures: {failed:#?}", failed.len());
+}

@@ -863,3 +863,259 @@ fn undecodable_texture_names_the_image() {
         "{message}"
     );
 }
+
+// The hostile-input suite, library level (issue 7). The command-line side,
+// one `error:` line and exit code 1, is in tests/cli.rs.
+
+/// A scene of one emitting quad at `quad` (mesh 'Far') under a node with
+/// `node` fields.
+fn scene_with_positions(quad: [[f32; 3]; 4], node: Value) -> Gltf {
+    let mut g = Gltf::default();
+    let m = g.emitter();
+    let pos = g.positions(&quad);
+    let idx = g.indices(&QUAD_INDICES);
+    let mesh = g.mesh(
+        Some("Far"),
+        vec![json!({"attributes": {"POSITION": pos}, "indices": idx, "material": m})],
+    );
+    let mut node = node;
+    node["mesh"] = json!(mesh);
+    g.root(node);
+    g
+}
+
+#[test]
+fn hostile_huge_finite_coordinates_are_refused_before_the_bvh() {
+    // Finite but near f32::MAX: obvhs panicked building the BVH.
+    let huge = QUAD.map(|p| p.map(|c| c * 3e38));
+    let message = scene_error(scene_with_positions(huge, json!({})).load());
+    assert!(
+        message.starts_with("mesh 'Far' primitive 0: vertex 1")
+            && message.contains("beyond the supported"),
+        "{message}"
+    );
+    // Moderate positions that a node scale carries past the bound.
+    let scaled = scene_with_positions(QUAD, json!({"scale": [1e13, 1e13, 1e13]}));
+    assert!(scene_error(scaled.load()).contains("mesh 'Far' primitive 0"));
+    // Just inside the bound: loads, and the BVH and a solve survive it.
+    let big = scene_with_positions(QUAD, json!({"scale": [9e11, 9e11, 9e11]}));
+    let scene = big.load().expect("coordinates within the bound load");
+    let mut settings = nusselt::pipeline::SolveSettings::default();
+    settings.hierarchical.accuracy = nusselt::hierarchical::Accuracy::preview();
+    settings.view.width = Some(8);
+    settings.view.height = Some(8);
+    let run = nusselt::pipeline::solve(&scene, &settings, &nusselt::progress::Progress::new(false))
+        .expect("a 9e11 m scene solves");
+    assert!(run.frame.pixels.iter().flatten().all(|c| c.is_finite()));
+    // The scene model refuses such coordinates too, naming the surface.
+    let mut tris: Vec<nusselt::scene::InputTriangle> = Vec::new();
+    for (k, corner) in [[0usize, 1, 2], [0, 2, 3]].iter().enumerate() {
+        tris.push(nusselt::scene::InputTriangle {
+            positions: corner.map(|i| DVec3::from_array(QUAD[i].map(f64::from)) * 3e38),
+            material: 0,
+            surface: 0,
+            reflectance: DVec3::splat(0.5),
+            emitted_radiance: DVec3::splat(k as f64),
+        });
+    }
+    let material = nusselt::scene::Material {
+        name: "m".into(),
+        reflectance: DVec3::splat(0.5),
+        emitted_radiance: DVec3::ONE,
+        double_sided: false,
+    };
+    let surface = nusselt::scene::Surface {
+        name: "Giant".into(),
+        node: 0,
+    };
+    match Scene::build(tris, vec![material], vec![surface], vec![], vec![]) {
+        Err(e) => assert!(e.to_string().contains("surface 'Giant'"), "{e}"),
+        Ok(_) => panic!("3e38 m coordinates were accepted"),
+    }
+}
+
+#[test]
+fn hostile_wrong_accessor_types_name_the_primitive() {
+    // (accessor to damage, field changes, expected words)
+    // `gltf`'s validation refuses POSITION that is not a 3-vector (by its
+    // min/max) and names it by JSON path; the loader refuses the rest.
+    let by_gltf = r#"not a valid glTF file: meshes[0].primitives[0].attributes["POSITION"]"#;
+    let cases: [(usize, Value, &str); 5] = [
+        (
+            0,
+            json!({"type": "VEC2", "min": [0, 0], "max": [1, 1]}),
+            by_gltf,
+        ),
+        (
+            0,
+            json!({"type": "SCALAR", "min": [0], "max": [1]}),
+            by_gltf,
+        ),
+        (
+            0,
+            json!({"componentType": 5121}),
+            "mesh 'Floor' primitive 0: POSITION accessor 0 has type Vec3 U8",
+        ),
+        (
+            2,
+            json!({"componentType": 5126}),
+            "mesh 'Floor' primitive 0: indices accessor 2 has type Scalar F32",
+        ),
+        (
+            2,
+            json!({"type": "VEC2"}),
+            "mesh 'Floor' primitive 0: indices accessor 2 has type Vec2",
+        ),
+    ];
+    for (accessor, change, needle) in cases {
+        let (_, mut json) = valid_json();
+        for (k, v) in change.as_object().unwrap() {
+            json["accessors"][accessor][k] = v.clone();
+        }
+        let message = scene_error(load_json(&json));
+        assert!(message.contains(needle), "{needle}: {message}");
+    }
+}
+
+#[test]
+fn hostile_very_deep_node_graph_loads_without_recursion() {
+    const DEPTH: usize = 100_000;
+    let (_, mut json) = valid_json();
+    // Node k has child k + 1; the quad hangs at the bottom, each level
+    // shifted by 1 µm along z.
+    let mut nodes: Vec<Value> = (0..DEPTH)
+        .map(|k| json!({"children": [k + 1], "translation": [0.0, 0.0, 1e-6]}))
+        .collect();
+    nodes.push(json!({"name": "Bottom", "mesh": 0}));
+    json["nodes"] = json!(nodes);
+    json["scenes"] = json!([{"nodes": [0]}]);
+    let scene = load_json(&json).expect("a deep but acyclic hierarchy loads");
+    assert_eq!(scene.surfaces.len(), 1);
+    assert_eq!(scene.surfaces[0].name, "Bottom");
+    let z = scene.patches[0].corners[0].z;
+    assert!((z - DEPTH as f64 * 1e-6).abs() < 1e-9, "z = {z}");
+    // The same depth closed into a cycle is found without recursion too.
+    let mut cyclic = json.clone();
+    cyclic["nodes"][DEPTH]["children"] = json!([0]);
+    assert!(scene_error(load_json(&cyclic)).contains("reached twice"));
+}
+
+/// The valid one-quad scene with its buffer in an external file
+/// `scene.bin` of `bin` bytes, declared `byte_length` long.
+fn external_buffer_scene(dir: &Path, bin: &[u8], byte_length: u64) -> std::path::PathBuf {
+    let (_, mut json) = valid_json();
+    std::fs::write(dir.join("scene.bin"), bin).unwrap();
+    json["buffers"][0] = json!({"uri": "scene.bin", "byteLength": byte_length});
+    let path = dir.join("scene.gltf");
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn hostile_missing_short_oversized_and_special_buffers() {
+    let dir = tempfile::tempdir().unwrap();
+    let (g, _) = valid_json();
+    let bin = g.bin.clone();
+    let path = external_buffer_scene(dir.path(), &bin, bin.len() as u64);
+    load_scene(&path, &LoadOptions::default()).expect("the intact external buffer loads");
+    let load = |path: &Path| scene_error(load_scene(path, &LoadOptions::default()));
+
+    // Missing file: named.
+    std::fs::remove_file(dir.path().join("scene.bin")).unwrap();
+    let message = load(&path);
+    assert!(
+        message.contains("buffer 0") && message.contains("scene.bin"),
+        "{message}"
+    );
+    // Shorter than declared.
+    let path = external_buffer_scene(dir.path(), &bin[..bin.len() - 8], bin.len() as u64);
+    assert!(load(&path).contains("cannot load buffers"));
+    // A declared length of a petabyte is not trusted (nor allocated).
+    let path = external_buffer_scene(dir.path(), &bin, 1_000_000_000_000_000);
+    assert!(load(&path).contains("cannot load buffers"));
+    // A device instead of a file would be read without end.
+    let (_, mut json) = valid_json();
+    json["buffers"][0]["uri"] = json!("file:///dev/zero");
+    let message = scene_error(load_scene_from_slice(
+        &serde_json::to_vec(&json).unwrap(),
+        Some(dir.path()),
+        &LoadOptions::default(),
+    ));
+    assert!(message.contains("not a regular file"), "{message}");
+    // So would a folder.
+    json["buffers"][0]["uri"] = json!(".");
+    let message = scene_error(load_scene_from_slice(
+        &serde_json::to_vec(&json).unwrap(),
+        Some(dir.path()),
+        &LoadOptions::default(),
+    ));
+    assert!(message.contains("not a regular file"), "{message}");
+}
+
+#[test]
+fn hostile_bad_data_uris_are_errors() {
+    let (g, _) = valid_json();
+    let encoded = base64::Engine::encode(&base64::engine::general_purpose::STANDARD, &g.bin);
+    let len = g.bin.len();
+    let with_uri = |uri: String| {
+        let (_, mut json) = valid_json();
+        json["buffers"][0] = json!({"uri": uri, "byteLength": len});
+        scene_error(load_json(&json))
+    };
+    let bad_base64 = with_uri(format!(
+        "data:application/octet-stream;base64,{}",
+        encoded.replace(['A', 'g'], "*")
+    ));
+    assert!(bad_base64.contains("buffer"), "{bad_base64}");
+    let wrong_mime = with_uri(format!("data:text/plain;base64,{encoded}"));
+    assert!(
+        wrong_mime.contains("buffer 0") && wrong_mime.contains("'text/plain'"),
+        "{wrong_mime}"
+    );
+    let not_base64 = with_uri("data:application/octet-stream,abc".into());
+    assert!(not_base64.contains("not base64"), "{not_base64}");
+    // The accepted alternative MIME type of the specification loads.
+    let (_, mut json) = valid_json();
+    json["buffers"][0]["uri"] = json!(format!("data:application/gltf-buffer;base64,{encoded}"));
+    load_json(&json).expect("application/gltf-buffer is a buffer MIME type");
+    // An image data URI that claims to be HTML.
+    let (_, mut json) = valid_json();
+    json["images"] = json!([{"uri": "data:text/html;base64,PGh0bWw+"}]);
+    let message = scene_error(load_json(&json));
+    assert!(message.contains("image 0"), "{message}");
+}
+
+#[test]
+fn hostile_giant_declared_texture_is_refused_from_its_header() {
+    // A PNG whose header claims 100 000 × 100 000 texels (30 GB decoded)
+    // followed by no pixel data: refused before any pixel buffer exists.
+    let mut png_bytes = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut png_bytes, 100_000, 100_000);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().unwrap();
+        // The header is read up to the first data chunk: give it one.
+        writer.write_chunk(png::chunk::IDAT, &[0x78, 0x9c]).unwrap();
+        drop(writer);
+    }
+    let mut g = Gltf::default();
+    let view = g.view(&png_bytes);
+    g.images
+        .push(json!({"bufferView": view, "mimeType": "image/png", "name": "giant"}));
+    g.textures.push(json!({"source": 0}));
+    let m = g.material(json!({"name": "Wall", "emissiveFactor": [1, 1, 1],
+        "pbrMetallicRoughness": {"metallicFactor": 0.0, "baseColorTexture": {"index": 0}}}));
+    let mesh = g.quad_mesh(Some("WallMesh"), Some(m));
+    g.root(json!({"mesh": mesh}));
+    let started = std::time::Instant::now();
+    let message = scene_error(g.load());
+    assert!(
+        message.contains("image 0 ('giant')") && message.contains("100000×100000"),
+        "{message}"
+    );
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "no decoding happened"
+    );
+}

@@ -5,6 +5,7 @@ mod classic;
 mod cli;
 mod closed_forms;
 mod compare;
+mod determinism;
 mod discontinuity;
 mod end_to_end;
 mod fuzz_corpus;

@@ -17,7 +17,8 @@
 //! - An [`OutputSet`] stages all files of a run before renaming any of them,
 //!   so a run that fails while encoding or writing leaves no new file and
 //!   destroys no earlier result. (The renames themselves are atomic one by
-//!   one, not as a group.)
+//!   one, not as a group; targets that no rename could replace, folders,
+//!   are refused before the first rename.)
 //!
 //! Temporary files are created with `std::fs` rather than the `tempfile`
 //! crate because `tempfile` creates them with mode 0600, which the rename
@@ -213,9 +214,19 @@ impl OutputSet {
     }
 
     /// Renames every staged file into place, in staging order, and returns
-    /// their paths. If a rename fails, the files not yet renamed are removed
-    /// and the error is returned.
+    /// their paths. A target that is a folder (which no rename can replace)
+    /// is found before anything is renamed, so the folder is left as it was;
+    /// if a rename still fails, the files not yet renamed are removed and
+    /// the error is returned.
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        for s in &self.staged {
+            if fs::symlink_metadata(&s.target).is_ok_and(|m| m.is_dir()) {
+                return Err(Error::output(
+                    &s.target,
+                    "a folder of that name is in the way; nothing was replaced",
+                ));
+            }
+        }
         std::mem::take(&mut self.staged)
             .into_iter()
             .map(StagedFile::persist)
