@@ -228,7 +228,7 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
     for (what, uri, types) in buffer_uris.chain(image_uris) {
         if let Some(rest) = uri.strip_prefix("data:") {
             let mime = rest.split([';', ',']).next().unwrap_or("");
-            if !types.contains(&mime) {
+            if !types.iter().any(|t| t.eq_ignore_ascii_case(mime)) {
                 return Err(format!(
                     "{what}: data URI has MIME type '{}', expected one of {}",
                     short(mime),

@@ -1078,6 +1078,9 @@ fn hostile_bad_data_uris_are_errors() {
     let (_, mut json) = valid_json();
     json["buffers"][0]["uri"] = json!(format!("data:application/gltf-buffer;base64,{encoded}"));
     load_json(&json).expect("application/gltf-buffer is a buffer MIME type");
+    // MIME types are case-insensitive.
+    json["buffers"][0]["uri"] = json!(format!("data:Application/Octet-Stream;base64,{encoded}"));
+    load_json(&json).expect("MIME types ignore case");
     // An image data URI that claims to be HTML.
     let (_, mut json) = valid_json();
     json["images"] = json!([{"uri": "data:text/html;base64,PGh0bWw+"}]);
