@@ -76,6 +76,20 @@ fn inner_face(min: DVec3, max: DVec3, side: Side) -> Vec<Tri> {
     quad(o, o + v, o + u + v, o + u).to_vec()
 }
 
+/// The six inner faces of the room [0, size] in material `material`.
+fn closed_room(s: &mut SceneDef, material: usize, size: DVec3) {
+    for (name, side) in [
+        ("floor", Side::NegY),
+        ("ceiling", Side::PosY),
+        ("left_wall", Side::NegX),
+        ("right_wall", Side::PosX),
+        ("back_wall", Side::NegZ),
+        ("front_wall", Side::PosZ),
+    ] {
+        s.add_surface(name, material, inner_face(DVec3::ZERO, size, side));
+    }
+}
+
 /// The triangle (a, b, c), reordered if needed so that its front faces
 /// `facing`.
 fn facing(a: DVec3, b: DVec3, c: DVec3, facing: DVec3) -> Tri {
@@ -342,17 +356,7 @@ the wall reflects."
         .to_owned();
     let white = grey(&mut s, "white", 0.7, "matte white walls, floor and ceiling");
     let light = black_light(&mut s, 1e4, "white L_e = 10⁴ (3.14 W from 1 cm²); black");
-    let (lo, hi) = (DVec3::ZERO, DVec3::new(3.0, 2.5, 3.0));
-    for (name, side) in [
-        ("floor", Side::NegY),
-        ("ceiling", Side::PosY),
-        ("left_wall", Side::NegX),
-        ("right_wall", Side::PosX),
-        ("back_wall", Side::NegZ),
-        ("front_wall", Side::PosZ),
-    ] {
-        s.add_surface(name, white, inner_face(lo, hi, side));
-    }
+    closed_room(&mut s, white, DVec3::new(3.0, 2.5, 3.0));
     // Faces −x: (u, v) = (z, y) gives z × y = −x.
     s.add_surface(
         "light",
@@ -606,17 +610,7 @@ so each is its own patch.",
     );
     let white = grey(&mut s, "white", 0.7, "matte white walls, floor and ceiling");
     let light = black_light(&mut s, 2.0, "white L_e = 2; black");
-    let (lo, hi) = (DVec3::ZERO, DVec3::new(3.0, 2.5, 3.0));
-    for (name, side) in [
-        ("floor", Side::NegY),
-        ("ceiling", Side::PosY),
-        ("left_wall", Side::NegX),
-        ("right_wall", Side::PosX),
-        ("back_wall", Side::NegZ),
-        ("front_wall", Side::PosZ),
-    ] {
-        s.add_surface(name, white, inner_face(lo, hi, side));
-    }
+    closed_room(&mut s, white, DVec3::new(3.0, 2.5, 3.0));
     let mut leds = Vec::with_capacity(EMITTER_GRID * EMITTER_GRID);
     for i in 0..EMITTER_GRID {
         for k in 0..EMITTER_GRID {
