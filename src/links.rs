@@ -19,8 +19,8 @@
 //! an adaptive quadrature when the points disagree by more than 10 %
 //! ([`sharpen`]); F_err = max − min of the point values at those centroids
 //! and at the receiver's corners. A source smaller than its receiver is
-//! also sampled at its own points (reciprocity): when that disagrees, the
-//! quadrature over the smaller element decides. Quadratures always run
+//! also sampled at its own points (reciprocity): when that gives half as
+//! much again, the quadrature over the smaller element decides. Quadratures always run
 //! over the smaller element.
 //! Visibility: the kernel-weighted unoccluded fraction of N rays between
 //! stratified points of the two elements, and its spread over the
@@ -98,7 +98,7 @@ impl Link {
     }
 }
 
-/// Centroid of `e` and a point strictly inside.
+/// The centroids of `e`'s four quarters and their shares of its area.
 fn receiver_points(e: &Element) -> ([DVec3; 4], [f64; 4]) {
     let kids = split_corners(e.shape, &e.corners);
     let n = e.vertices().len();
@@ -217,8 +217,9 @@ pub fn evaluate_link(
     // A source smaller than its receiver: the receiver's points may all lie
     // far from where its light falls (a small lamp next to a wall). By
     // reciprocity, F_rs = (A_s / A_r) F_sr with F_sr from the source's own
-    // points. When the two disagree, the quadrature over the source decides,
-    // and the receiver's F varies at least as much as they differ.
+    // points. When those see half as much again (the receiver's points
+    // missed a peak), the quadrature over the source decides, and the
+    // receiver's F varies at least as much as the two differ.
     let mut spread = hi - lo;
     if s.area < r.area {
         let (ys, ws) = receiver_points(s);
@@ -229,8 +230,8 @@ pub fn evaluate_link(
             .map(|(y, wk)| wk * form_factor_point_polygon(*y, n_s, r.vertices()))
             .sum();
         let f_rec = s.area / r.area * f_sr;
-        if (f_rec - f).abs() > 0.1 * f.max(f_rec) {
-            let tol = 0.01 * f.max(f_rec);
+        if f_rec > 1.5 * f {
+            let tol = 0.01 * f_rec;
             let exact = exact_form_factor(r, n_r, s, n_s, tol, None).unwrap_or(f_rec);
             spread = spread.max((exact - f).abs());
             f = exact;
