@@ -36,7 +36,7 @@ use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy, split_corners};
 use crate::links::{
     Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
-    sharpen, sharpen_tolerance, split_at_any_visibility, visibility_error, weighted_visibility,
+    sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
@@ -471,10 +471,7 @@ impl Solver<'_> {
                         evaluate_link(scene, elements, r, s, bvh, rays, seed, p.whole, skip);
                     let d = decide(t, &link, re, se, &state, rho);
                     if d == Decision::Accept {
-                        let tol = sharpen_tolerance(t, &link, re.area, rho, &state);
-                        let normal =
-                            |e: &crate::hierarchy::Element| scene.patches[e.patch as usize].normal;
-                        sharpen(&mut link, re, normal(re), se, normal(se), tol);
+                        sharpen(scene, t, &mut link, re, se, &state);
                     }
                     (link, cast, d)
                 })
@@ -504,13 +501,9 @@ impl Solver<'_> {
                     );
                     link = l;
                     let (h, source) = (&self.hierarchy, link.source);
-                    let n_s = self.scene.patches[h.get(source).patch as usize].normal;
-                    let (re, se) = (h.get(r), h.get(source));
-                    let rho = self.scene.patches[re.patch as usize].reflectance;
                     let state = h.source_state(source);
-                    let tol = sharpen_tolerance(&self.thresholds, &link, re.area, rho, &state);
-                    let n_r = self.scene.patches[re.patch as usize].normal;
-                    sharpen(&mut link, re, n_r, se, n_s, tol);
+                    let t = &self.thresholds;
+                    sharpen(self.scene, t, &mut link, h.get(r), h.get(source), &state);
                     self.rays += c;
                 }
                 if link.coupling() > 0.0 {

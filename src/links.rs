@@ -322,15 +322,19 @@ const SHARPEN_EVALUATIONS: usize = 600;
 /// tenth of it (close or touching elements, where the midpoint rule is
 /// biased). The oracle bounds how F varies over the receiver; this makes
 /// its mean right, so that energy is conserved over the hierarchy. The
-/// quadrature's tolerance is `tolerance` (see [`sharpen_tolerance`]).
+/// quadrature's tolerance comes from [`sharpen_tolerance`]; `state` is the
+/// source's state as the oracle sees it.
 pub fn sharpen(
+    scene: &Scene,
+    t: &Thresholds,
     link: &mut Link,
     receiver: &Element,
-    receiver_normal: DVec3,
     source: &Element,
-    source_normal: DVec3,
-    tolerance: f64,
+    state: &SourceState,
 ) {
+    let patch = |e: &Element| &scene.patches[e.patch as usize];
+    let rho = patch(receiver).reflectance;
+    let tolerance = sharpen_tolerance(t, link, receiver.area, rho, state);
     // The exact mean lies within the spread of the point values (nearly:
     // they sample F's extremes): a spread within the tolerance needs
     // nothing.
@@ -338,14 +342,8 @@ pub fn sharpen(
     if !(spread > 0.1 * f) || !(spread > tolerance) {
         return;
     }
-    if let Some(exact) = exact_form_factor(
-        receiver,
-        receiver_normal,
-        source,
-        source_normal,
-        tolerance,
-        Some(f),
-    ) {
+    let (n_r, n_s) = (patch(receiver).normal, patch(source).normal);
+    if let Some(exact) = exact_form_factor(receiver, n_r, source, n_s, tolerance, Some(f)) {
         link.form_factor = exact as f32;
     }
 }
