@@ -11,9 +11,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
 pub mod chart;
+pub mod closed_form;
 pub mod compare;
 pub mod discontinuity;
 pub mod error;
+pub mod failures;
 pub mod formfactor;
 pub mod frame;
 pub mod hemicube;

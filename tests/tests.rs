@@ -8,6 +8,7 @@ mod compare;
 mod determinism;
 mod discontinuity;
 mod end_to_end;
+mod failure_table;
 mod fuzz_corpus;
 mod hierarchical;
 mod loader;
