@@ -3,8 +3,9 @@
 //! refinement, and gather + push-pull iterations.
 //!
 //! Owns: [`Accuracy`] (the presets and every threshold),
-//! [`HierarchicalSettings`], [`solve_hierarchical`] and the output mesh of a
-//! hierarchy, [`leaf_output_mesh`].
+//! [`HierarchicalSettings`] (with the resource budgets, [`BudgetHit`]),
+//! [`solve_hierarchical`] and the output mesh of a hierarchy,
+//! [`leaf_output_mesh`].
 //!
 //! Invariants:
 //! - Links live with their receivers (`links[receiver]`), in an order that
@@ -18,6 +19,13 @@
 //! - After [`solve_hierarchical`], every element's radiosity is consistent
 //!   with push-pull: B = E + ρ H at leaves, the area-weighted mean of the
 //!   children above.
+//! - Resource budgets: no split makes the link count exceed `max_links`,
+//!   the element count exceed `max_elements`, or [`memory_estimate`]
+//!   exceed `memory_budget`; a refused split keeps its link as it is, the
+//!   round loop stops, and [`HierarchicalSolution::budget`] names the
+//!   first budget that refused one. Every `Hierarchy::split` call goes
+//!   through `Solver::refuse_split`. (The initial patch-to-patch links
+//!   are not budgeted.)
 //!
 //! The loop ("multigridding", [HSA91] §5): refine every link with the
 //! current radiosities; gather + push-pull until the total power Σ B·A
@@ -71,6 +79,9 @@ pub struct Accuracy {
     pub gradient_tol: f64,
     /// Link budget: refinement stops when it is reached (`None`: unlimited).
     pub max_links: Option<u64>,
+    /// Element budget: no split makes the hierarchy larger (`None`:
+    /// unlimited).
+    pub max_elements: Option<u64>,
     /// Refinement rounds (refine, solve) at most.
     pub max_rounds: usize,
 }
@@ -85,6 +96,7 @@ impl Accuracy {
             min_area: 1e-4,
             gradient_tol: 0.5,
             max_links: None,
+            max_elements: None,
             max_rounds: 3,
         }
     }
@@ -100,6 +112,7 @@ impl Accuracy {
             min_area: 2e-5,
             gradient_tol: 0.15,
             max_links: None,
+            max_elements: None,
             max_rounds: 5,
         }
     }
@@ -113,6 +126,7 @@ impl Accuracy {
             min_area: 4e-6,
             gradient_tol: 0.05,
             max_links: None,
+            max_elements: None,
             max_rounds: 8,
         }
     }
@@ -145,6 +159,9 @@ pub struct HierarchicalSettings {
     pub tolerance: f64,
     /// Gather + push-pull iterations per round at most.
     pub max_iterations: usize,
+    /// Bytes the hierarchy, the links and the solver's working arrays may
+    /// take, as [`memory_estimate`] counts them: no split crosses it.
+    pub memory_budget: u64,
 }
 
 impl Default for HierarchicalSettings {
@@ -156,7 +173,105 @@ impl Default for HierarchicalSettings {
             seed: 0,
             tolerance: 1e-5,
             max_iterations: 10_000,
+            memory_budget: DEFAULT_MEMORY_BUDGET,
         }
+    }
+}
+
+/// Default of [`HierarchicalSettings::memory_budget`]: 2 GiB, the same as
+/// the dense matrix's.
+pub const DEFAULT_MEMORY_BUDGET: u64 = crate::matrix::DEFAULT_MEMORY_BUDGET;
+
+/// Bytes per element in [`memory_estimate`]: the element, its link list,
+/// its irradiance and gathered irradiance, its list of oracle decisions.
+const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchy::Element>()
+    + std::mem::size_of::<Vec<Link>>()
+    + 2 * std::mem::size_of::<DVec3>()
+    + std::mem::size_of::<Vec<Decision>>()) as u64;
+
+/// Bytes per link in [`memory_estimate`]: the link, its oracle decision,
+/// and the pair and evaluation it takes while being settled.
+const LINK_BYTES: u64 = (std::mem::size_of::<Link>()
+    + std::mem::size_of::<Decision>()
+    + std::mem::size_of::<Pair>()
+    + std::mem::size_of::<(Link, u64, Decision)>()) as u64;
+
+/// The peak memory of a hierarchical solve with `elements` elements and
+/// `links` links, in bytes: counts times per-item sizes, doubled for the
+/// spare capacity of growing vectors. Cheap (no walk over the lists), and
+/// above what the solver holds: the memory budget is checked against it.
+pub fn memory_estimate(elements: u64, links: u64) -> u64 {
+    elements
+        .saturating_mul(ELEMENT_BYTES)
+        .saturating_add(links.saturating_mul(LINK_BYTES))
+        .saturating_mul(2)
+}
+
+/// A resource budget of the hierarchical solver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Budget {
+    /// [`Accuracy::max_links`].
+    Links,
+    /// [`Accuracy::max_elements`].
+    Elements,
+    /// [`HierarchicalSettings::memory_budget`], in bytes.
+    Memory,
+}
+
+impl Budget {
+    /// The command-line option that sets it.
+    pub fn option(self) -> &'static str {
+        match self {
+            Budget::Links => "--max-links",
+            Budget::Elements => "--max-elements",
+            Budget::Memory => "--memory-budget",
+        }
+    }
+}
+
+/// The budget that stopped refinement (also `budget` in `report.json`):
+/// its limit and the value reached when the solve ended (links, elements,
+/// or estimated bytes; at most the limit unless the initial linking alone
+/// exceeded it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct BudgetHit {
+    pub kind: Budget,
+    pub limit: u64,
+    pub reached: u64,
+}
+
+impl BudgetHit {
+    /// One line for the warnings, naming the option to raise.
+    pub fn message(&self) -> String {
+        let (limit, reached) = match self.kind {
+            Budget::Links => (format!("{} links", self.limit), self.reached.to_string()),
+            Budget::Elements => (format!("{} elements", self.limit), self.reached.to_string()),
+            Budget::Memory => {
+                let bytes = |b: u64| {
+                    let gib = b as f64 / (1u64 << 30) as f64;
+                    if gib >= 1.0 {
+                        format!("{gib:.2} GiB")
+                    } else {
+                        format!("{:.1} MiB", gib * 1024.0)
+                    }
+                };
+                (
+                    bytes(self.limit),
+                    format!("{} estimated", bytes(self.reached)),
+                )
+            }
+        };
+        format!(
+            "hierarchical: refinement stopped at the {} budget of {limit} (reached {reached}); \
+             raise {} for a finer solution",
+            match self.kind {
+                Budget::Links => "link",
+                Budget::Elements => "element",
+                Budget::Memory => "memory",
+            },
+            self.kind.option()
+        )
     }
 }
 
@@ -208,8 +323,8 @@ pub struct HierarchicalSolution {
     pub rounds: Vec<Round>,
     /// The last solve met the tolerance.
     pub converged: bool,
-    /// Refinement stopped at `max_links`.
-    pub budget_reached: bool,
+    /// The budget that stopped refinement, if one did.
+    pub budget: Option<BudgetHit>,
     /// Refinement stopped at `max_rounds` with links still to split.
     pub rounds_exhausted: bool,
     pub visibility_rays: u64,
@@ -305,18 +420,67 @@ struct Solver<'a> {
     links: Vec<Vec<Link>>,
     n_links: u64,
     rays: u64,
-    budget_reached: bool,
+    /// The first budget that refused a split.
+    budget: Option<Budget>,
     /// Elements `..measured` have their exposure measured (the arena only
     /// grows).
     measured: usize,
 }
 
 impl Solver<'_> {
-    fn over_budget(&self, extra: u64) -> bool {
-        self.settings
-            .accuracy
-            .max_links
-            .is_some_and(|max| self.n_links + extra > max)
+    /// The budget that splitting `id` (four new elements unless it is
+    /// split already) and adding `extra` links would exceed, if any.
+    fn exceeded(&self, id: ElementId, extra: u64) -> Option<Budget> {
+        let acc = &self.settings.accuracy;
+        let links = self.n_links + extra;
+        let new = if self.hierarchy.get(id).is_leaf() {
+            4
+        } else {
+            0
+        };
+        let elements = self.hierarchy.len() as u64 + new;
+        if acc.max_links.is_some_and(|max| links > max) {
+            Some(Budget::Links)
+        } else if acc.max_elements.is_some_and(|max| elements > max) {
+            Some(Budget::Elements)
+        } else if memory_estimate(elements, links) > self.settings.memory_budget {
+            Some(Budget::Memory)
+        } else {
+            None
+        }
+    }
+
+    /// True when splitting `id` and adding `extra` links would exceed a
+    /// budget; the first budget to refuse is remembered. Every split asks
+    /// this first.
+    fn refuse_split(&mut self, id: ElementId, extra: u64) -> bool {
+        let hit = self.exceeded(id, extra);
+        if self.budget.is_none() {
+            self.budget = hit;
+        }
+        hit.is_some()
+    }
+
+    /// The budget that refused a split, with its limit and what was
+    /// reached.
+    fn budget_hit(&self) -> Option<BudgetHit> {
+        let (elements, links) = (self.hierarchy.len() as u64, self.n_links);
+        let acc = &self.settings.accuracy;
+        self.budget.map(|kind| {
+            let (limit, reached) = match kind {
+                Budget::Links => (acc.max_links.unwrap_or(0), links),
+                Budget::Elements => (acc.max_elements.unwrap_or(0), elements),
+                Budget::Memory => (
+                    self.settings.memory_budget,
+                    memory_estimate(elements, links),
+                ),
+            };
+            BudgetHit {
+                kind,
+                limit,
+                reached,
+            }
+        })
     }
 
     /// Carries out a split decision on the counted link (receiver `r`,
@@ -330,14 +494,19 @@ impl Solver<'_> {
         decision: Decision,
         next: &mut Vec<Pair>,
     ) -> bool {
-        let (receivers, sources) = match decision {
+        let target = match decision {
             Decision::Accept => return false,
-            _ if self.over_budget(3) => {
-                self.budget_reached = true;
-                return false;
-            }
-            Decision::SplitReceiver => (self.hierarchy.split(r), [link.source; 4]),
-            Decision::SplitSource => ([r; 4], self.hierarchy.split(link.source)),
+            Decision::SplitReceiver => r,
+            Decision::SplitSource => link.source,
+        };
+        if self.refuse_split(target, 3) {
+            return false;
+        }
+        let children = self.hierarchy.split(target);
+        let (receivers, sources) = if decision == Decision::SplitReceiver {
+            (children, [link.source; 4])
+        } else {
+            ([r; 4], children)
         };
         // One link becomes four.
         self.n_links += 3;
@@ -433,8 +602,7 @@ impl Solver<'_> {
             });
             self.links[r] = keep;
             let extra = 3 * down.len() as u64;
-            if self.over_budget(extra) {
-                self.budget_reached = true;
+            if self.refuse_split(ElementId(r as u32), extra) {
                 self.links[r].extend(down);
                 continue;
             }
@@ -583,8 +751,7 @@ impl Solver<'_> {
                     .partition(|l| l.partly_visible() || l.spread() > 0.0);
                 self.links[id.index()] = keep;
                 let extra = 3 * down.len() as u64;
-                if self.over_budget(extra) {
-                    self.budget_reached = true;
+                if self.refuse_split(id, extra) {
                     self.links[id.index()].extend(down);
                     continue;
                 }
@@ -665,8 +832,7 @@ impl Solver<'_> {
             });
             self.links[k.index()] = keep;
             let extra = 3 * down.len() as u64;
-            if down.is_empty() || self.over_budget(extra) {
-                self.budget_reached |= !down.is_empty();
+            if down.is_empty() || self.refuse_split(k, extra) {
                 self.links[k.index()].extend(down);
                 continue;
             }
@@ -883,7 +1049,7 @@ pub fn solve_hierarchical_guided(
         links: vec![Vec::new(); scene.patches.len()],
         n_links: 0,
         rays: 0,
-        budget_reached: false,
+        budget: None,
         measured: 0,
     };
     let mut times = HierarchicalTimes::default();
@@ -923,7 +1089,7 @@ pub fn solve_hierarchical_guided(
             seconds: round_start.elapsed().as_secs_f64(),
         });
         phase.inc(1);
-        if solver.budget_reached {
+        if solver.budget.is_some() {
             break;
         }
         if round + 1 == max_rounds {
@@ -947,13 +1113,14 @@ pub fn solve_hierarchical_guided(
     }
     solver.hierarchy.elements.shrink_to_fit();
     irradiance.shrink_to_fit();
+    let budget = solver.budget_hit();
     HierarchicalSolution {
         links: solver.links,
         irradiance,
         history,
         rounds,
         converged,
-        budget_reached: solver.budget_reached,
+        budget,
         rounds_exhausted,
         visibility_rays: solver.rays,
         times,

@@ -313,9 +313,14 @@ struct HierarchicalArgs {
     /// this fraction of the mean emitted exitance (0 disables).
     #[arg(long)]
     gradient_tol: Option<f64>,
-    /// Link budget: refinement stops there (the report says so).
-    #[arg(long)]
-    max_links: Option<u64>,
+    /// Link budget: no split takes the link count past N; refinement stops
+    /// there (the report says so).
+    #[arg(long, value_name = "N")]
+    max_links: Option<f64>,
+    /// Element budget: no split takes the hierarchy past N elements;
+    /// refinement stops there (the report says so).
+    #[arg(long, value_name = "N")]
+    max_elements: Option<f64>,
     /// Refinement rounds (refine + solve) at most.
     #[arg(long)]
     max_rounds: Option<usize>,
@@ -328,6 +333,7 @@ impl HierarchicalArgs {
         rays: usize,
         tolerance: f64,
         max_iterations: usize,
+        memory_budget: u64,
     ) -> Result<HierarchicalSettings> {
         let mut a = Accuracy::preset(match self.accuracy {
             AccuracyName::Preview => Preset::Preview,
@@ -343,6 +349,15 @@ impl HierarchicalArgs {
             }
             Ok(())
         };
+        // A budget: a whole number from 1 to 2^53 (exact in an f64).
+        let count = |name: &str, v: Option<f64>| -> Result<Option<u64>> {
+            match v {
+                Some(v) if !((1.0..=9_007_199_254_740_992.0).contains(&v) && v.fract() == 0.0) => {
+                    bail!("--{name} must be a whole number of at least 1, not {v}")
+                }
+                v => Ok(v.map(|v| v as u64)),
+            }
+        };
         positive("ff-eps", self.ff_eps, &mut a.ff_eps)?;
         positive("bf-eps", self.bf_eps, &mut a.bf_eps)?;
         positive("power-eps", self.power_eps, &mut a.power_eps)?;
@@ -353,9 +368,8 @@ impl HierarchicalArgs {
             }
             a.gradient_tol = g;
         }
-        if let Some(m) = self.max_links {
-            a.max_links = Some(m);
-        }
+        a.max_links = count("max-links", self.max_links)?;
+        a.max_elements = count("max-elements", self.max_elements)?;
         if let Some(r) = self.max_rounds {
             if r == 0 {
                 bail!("--max-rounds must be at least 1");
@@ -373,6 +387,7 @@ impl HierarchicalArgs {
             seed,
             tolerance,
             max_iterations,
+            memory_budget,
         })
     }
 }
@@ -413,8 +428,10 @@ struct KernelArgs {
     /// Do not turn each hemicube by a random angle about its normal.
     #[arg(long)]
     no_hemicube_rotation: bool,
-    /// Largest dense matrix (and direct-method factorisation) allowed, in GiB.
-    #[arg(long, default_value_t = 2.0)]
+    /// Largest dense matrix (and direct-method factorisation) allowed, in
+    /// GiB; for hierarchical, the estimated memory of the elements and
+    /// links, where refinement stops (the report says so).
+    #[arg(long, value_name = "GIB", default_value_t = 2.0)]
     memory_budget: f64,
 }
 
@@ -572,6 +589,7 @@ fn run_solve(args: SolveArgs) -> Result<()> {
             .max(1),
         args.tolerance,
         args.max_iterations,
+        matrix.memory_budget,
     )?;
     let mode = match args.mesh {
         None | Some(MeshName::Discontinuity) => MeshMode::Discontinuity,

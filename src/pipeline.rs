@@ -202,12 +202,10 @@ fn solve_with_hierarchy(
             hs.tolerance, hs.max_iterations
         ));
     }
-    if solution.budget_reached {
-        report.warnings.push(format!(
-            "hierarchical: refinement stopped at the link budget of {} links",
-            hs.accuracy.max_links.unwrap_or(0)
-        ));
+    if let Some(hit) = &solution.budget {
+        report.warnings.push(hit.message());
     }
+    report.budget = solution.budget;
     if solution.rounds_exhausted {
         report.warnings.push(format!(
             "hierarchical: refinement stopped after {} rounds with links still above the threshold",

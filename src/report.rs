@@ -99,6 +99,10 @@ pub struct Report {
     pub times: PhaseTimes,
     pub convergence: ConvergenceReport,
     pub power: Power,
+    /// Hierarchical: the resource budget that stopped refinement (`null`
+    /// when none did, and for the classic methods).
+    #[serde(default)]
+    pub budget: Option<crate::hierarchical::BudgetHit>,
     /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
     pub max_row_sum: f64,
     pub mean_row_sum: f64,

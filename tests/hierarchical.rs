@@ -314,16 +314,6 @@ fn same_radiosities_for_one_and_two_threads() {
     assert_eq!(one.links, two.links);
 }
 
-#[test]
-fn link_budget_stops_refinement_and_says_so() {
-    let scene = cornell();
-    let mut settings = with(Accuracy::default());
-    settings.accuracy.max_links = Some(2_000);
-    let s = run(&scene, &settings);
-    assert!(s.budget_reached);
-    assert!(s.link_count() <= 2_000, "{}", s.link_count());
-}
-
 /// The floor of the Cornell box and a face of the tall block that leans
 /// away from the floor's middle: every quarter centroid of the floor lies
 /// behind the face's plane (the midpoint rule says F = 0), while the floor

@@ -1,5 +1,6 @@
 //! Integration tests, one module per topic.
 
+mod budgets;
 mod chart;
 mod classic;
 mod cli;

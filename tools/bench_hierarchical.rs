@@ -105,7 +105,7 @@ fn child(scene_path: &str, preset_name: &str) -> anyhow::Result<()> {
         rounds: solution.rounds.len(),
         iterations: solution.history.len(),
         converged: solution.converged,
-        cut_short: solution.rounds_exhausted || solution.budget_reached,
+        cut_short: solution.rounds_exhausted || solution.budget.is_some(),
         bytes_per_link: solution.memory_bytes() as f64 / links.max(1) as f64,
         peak_mib: peak_rss_mib(),
     };

@@ -1,0 +1,250 @@
+//! Resource budgets of the hierarchical solver (issue 7): `max_links`,
+//! `max_elements` and the memory budget stop refinement without exceeding
+//! the limit, the solution stays physical, and `report.json` names the
+//! budget (or says `null`); the command line checks the values.
+
+use nusselt::hierarchical::{
+    Accuracy, Budget, BudgetHit, HierarchicalSettings, memory_estimate, solve_hierarchical_guided,
+};
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::pipeline::{SolveRun, SolveSettings, scene_bvh, solve};
+use nusselt::progress::Progress;
+use nusselt::render::RenderSettings;
+use nusselt::scene::Scene;
+use nusselt::view::ViewOverrides;
+
+use crate::util::{assert_user_error, nusselt, on_threads};
+
+fn cornell_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf")
+}
+
+fn cornell() -> Scene {
+    load_scene(&cornell_path(), &LoadOptions::default()).unwrap()
+}
+
+/// The default preset and output mesh (discontinuity: guided refinement
+/// included), a tiny image.
+fn settings(budget: impl FnOnce(&mut HierarchicalSettings)) -> SolveSettings {
+    let mut s = SolveSettings {
+        render: RenderSettings {
+            samples_per_pixel: 1,
+            seed: 0,
+        },
+        view: ViewOverrides {
+            width: Some(16),
+            height: Some(16),
+            ..ViewOverrides::default()
+        },
+        ..SolveSettings::default()
+    };
+    budget(&mut s.hierarchical);
+    s
+}
+
+/// Solves and checks what every run must hold, budget or not: finite,
+/// non-negative output, absorbed power at most the emitted, and the report
+/// naming the budget exactly when a warning does.
+fn run(scene: &Scene, settings: &SolveSettings) -> SolveRun {
+    let run = solve(scene, settings, &Progress::hidden()).unwrap();
+    run.mesh.validate().unwrap();
+    for b in &run.mesh.radiosity {
+        assert!(b.is_finite() && b.min_element() >= 0.0, "radiosity {b}");
+    }
+    let p = &run.report.power;
+    for c in 0..3 {
+        assert!(p.emitted[c] > 0.0 && p.absorbed[c].is_finite(), "{p:?}");
+        assert!(p.absorbed[c] <= p.emitted[c], "{p:?}");
+    }
+    let warned = run.report.warnings.iter().find(|w| w.contains("budget"));
+    match &run.report.budget {
+        Some(hit) => {
+            let w = warned.expect("a budget warning");
+            assert!(w.contains(hit.kind.option()), "{w}");
+            assert!(!w.contains('\n'), "{w}");
+        }
+        None => assert!(warned.is_none(), "{warned:?}"),
+    }
+    run
+}
+
+fn hit(run: &SolveRun) -> BudgetHit {
+    run.report.budget.expect("a budget is reported")
+}
+
+#[test]
+fn element_budget_bounds_the_hierarchy() {
+    let scene = cornell();
+    let r = run(&scene, &settings(|h| h.accuracy.max_elements = Some(2_000)));
+    let hit = hit(&r);
+    let elements = r.report.counts.elements as u64;
+    assert_eq!(hit.kind, Budget::Elements);
+    assert_eq!((hit.limit, hit.reached), (2_000, elements));
+    // A split adds four: the refused one came within four of the limit.
+    assert!(elements <= 2_000 && elements + 4 > 2_000, "{elements}");
+    let json = serde_json::to_value(&r.report).unwrap();
+    assert_eq!(
+        json["budget"],
+        serde_json::json!({"kind": "elements", "limit": 2000, "reached": elements})
+    );
+}
+
+/// A budget so small that the initial linking runs into it: the
+/// discontinuity-guided splits that follow are refused too, and no
+/// refinement round follows the first solve.
+#[test]
+fn tiny_element_budget_binds_linking_and_guided_splits() {
+    let scene = cornell();
+    let r = run(&scene, &settings(|h| h.accuracy.max_elements = Some(120)));
+    assert_eq!(hit(&r).kind, Budget::Elements);
+    assert!(r.report.counts.elements <= 120, "{:?}", r.report.counts);
+    assert_eq!(
+        r.report.convergence.rounds.len(),
+        1,
+        "no round after the hit"
+    );
+}
+
+#[test]
+fn memory_budget_bounds_the_estimate() {
+    let scene = cornell();
+    let budget = 4 << 20;
+    let r = run(&scene, &settings(|h| h.memory_budget = budget));
+    let hit = hit(&r);
+    let c = &r.report.counts;
+    let estimate = memory_estimate(c.elements as u64, c.links);
+    assert_eq!(hit.kind, Budget::Memory);
+    assert_eq!((hit.limit, hit.reached), (budget, estimate));
+    assert!(estimate <= budget, "{estimate} > {budget}");
+    // The estimate bounds what the solution holds.
+    assert!(
+        c.memory_bytes <= estimate,
+        "{} > {estimate}",
+        c.memory_bytes
+    );
+    // Not refused far below the limit: a quarter of it at least.
+    assert!(4 * estimate > budget, "{estimate}");
+}
+
+#[test]
+fn link_budget_is_reported() {
+    let scene = cornell();
+    let r = run(&scene, &settings(|h| h.accuracy.max_links = Some(2_000)));
+    let hit = hit(&r);
+    assert_eq!(hit.kind, Budget::Links);
+    assert_eq!((hit.limit, hit.reached), (2_000, r.report.counts.links));
+    assert!(hit.reached <= 2_000);
+}
+
+/// The first budget to refuse a split is the one reported; the others
+/// still hold.
+#[test]
+fn several_budgets_each_hold() {
+    let scene = cornell();
+    let r = run(
+        &scene,
+        &settings(|h| {
+            h.accuracy.max_links = Some(3_000);
+            h.accuracy.max_elements = Some(1_500);
+        }),
+    );
+    let c = &r.report.counts;
+    assert!(c.links <= 3_000 && c.elements <= 1_500, "{c:?}");
+    assert!(r.report.budget.is_some());
+}
+
+#[test]
+fn no_budget_reached_reports_null() {
+    let scene = cornell();
+    let r = run(
+        &scene,
+        &settings(|h| {
+            h.accuracy = Accuracy::preview();
+            h.accuracy.max_elements = Some(1_000_000);
+            h.accuracy.max_links = Some(1_000_000);
+        }),
+    );
+    assert_eq!(r.report.budget, None);
+    let json = serde_json::to_value(&r.report).unwrap();
+    assert!(json["budget"].is_null(), "{}", json["budget"]);
+}
+
+#[test]
+fn budgeted_solve_is_thread_independent() {
+    let scene = cornell();
+    let bvh = scene_bvh(&scene);
+    let hs = HierarchicalSettings {
+        accuracy: Accuracy {
+            max_elements: Some(600),
+            ..Accuracy::default()
+        },
+        ..HierarchicalSettings::default()
+    };
+    let solve_on = |threads| {
+        on_threads(threads, || {
+            solve_hierarchical_guided(&scene, &bvh, &hs, &[], &Progress::hidden())
+        })
+    };
+    let (one, two) = (solve_on(1), solve_on(2));
+    assert_eq!(one.budget, two.budget);
+    assert_eq!(one.hierarchy.elements, two.hierarchy.elements);
+    assert_eq!(one.links, two.links);
+}
+
+#[test]
+fn cli_max_elements_writes_the_budget_to_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell_path();
+    let out = nusselt(
+        &[
+            "solve",
+            scene.to_str().unwrap(),
+            "-q",
+            "-o",
+            "res",
+            "--max-elements",
+            "500",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("raise --max-elements"), "{stderr}");
+    let text = std::fs::read_to_string(dir.path().join("res/report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let budget = &report["budget"];
+    assert_eq!(budget["kind"], "elements", "{budget}");
+    assert_eq!(budget["limit"], 500, "{budget}");
+    let reached = budget["reached"].as_u64().unwrap();
+    assert!(
+        reached <= 500 && reached == report["counts"]["elements"],
+        "{budget}"
+    );
+}
+
+#[test]
+fn cli_refuses_bad_budgets() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cornell_path();
+    let scene = scene.to_str().unwrap();
+    for (flag, value) in [
+        ("--max-elements", "0"),
+        ("--max-elements", "-3"),
+        ("--max-elements", "NaN"),
+        ("--max-elements", "2.5"),
+        ("--max-links", "0"),
+        ("--max-links", "inf"),
+        ("--memory-budget", "0"),
+        ("--memory-budget", "-1"),
+        ("--memory-budget", "NaN"),
+    ] {
+        let arg = format!("{flag}={value}");
+        let out = nusselt(&["solve", scene, "-q", &arg], dir.path());
+        assert_user_error(&out, flag);
+    }
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}
