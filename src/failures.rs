@@ -31,7 +31,7 @@ use glam::DVec3;
 use crate::error::Result;
 use crate::formfactor::form_factor_point_polygon;
 use crate::frame::Frame;
-use crate::hierarchical::{Accuracy, HierarchicalSettings};
+use crate::hierarchical::{Accuracy, Budget, HierarchicalSettings};
 use crate::matrix::{Kernel, MatrixSettings};
 use crate::meshing::{MeshMode, MeshSettings};
 use crate::output;
@@ -302,8 +302,8 @@ pub struct Measure {
     pub image_bias: f64,
     /// Some vertex or pixel is NaN, infinite or negative.
     pub non_finite: bool,
-    /// Refinement stopped at a budget.
-    pub budget_reached: bool,
+    /// The budget that stopped refinement, if one did.
+    pub budget: Option<Budget>,
 }
 
 /// What became of one method on one scene.
@@ -562,7 +562,7 @@ pub fn measure(
         image_error,
         image_bias,
         non_finite,
-        budget_reached: r.warnings.iter().any(|w| w.contains("budget")),
+        budget: r.budget.as_ref().map(|b| b.kind),
     })
 }
 
@@ -626,8 +626,8 @@ pub fn symptoms(outcome: &Outcome, fastest: f64, noise: f64) -> Vec<String> {
             m.iterations
         ));
     }
-    if m.budget_reached {
-        out.push("refinement stopped at the link budget".to_string());
+    if let Some(b) = m.budget {
+        out.push(format!("refinement stopped at the {} budget", b.noun()));
     }
     match m.power_error {
         Some(e) if e > ENERGY_CREATED => out.push(format!("energy created (+{:.1} %)", 100.0 * e)),
@@ -887,7 +887,7 @@ mod tests {
             image_error: 0.05,
             image_bias: 0.0,
             non_finite: false,
-            budget_reached: false,
+            budget: None,
         };
         m(&mut measure);
         Outcome::Ran(measure)
@@ -914,6 +914,10 @@ mod tests {
         assert!(s(ran(|m| m.seconds = 30.0)).starts_with("slow (30×"));
         assert_eq!(s(ran(|m| m.seconds = 4.0)), "");
         assert!(s(ran(|m| m.non_finite = true)).starts_with("non-finite"));
+        assert!(
+            s(ran(|m| m.budget = Some(Budget::Elements)))
+                .starts_with("refinement stopped at the element budget")
+        );
         assert!(s(Outcome::Refused("too big".into())).starts_with("refused: too big"));
         assert!(s(Outcome::Panicked("oops".into())).starts_with("PANIC"));
     }

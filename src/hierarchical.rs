@@ -220,6 +220,15 @@ pub enum Budget {
 }
 
 impl Budget {
+    /// What it counts, as in "the link budget".
+    pub fn noun(self) -> &'static str {
+        match self {
+            Budget::Links => "link",
+            Budget::Elements => "element",
+            Budget::Memory => "memory",
+        }
+    }
+
     /// The command-line option that sets it.
     pub fn option(self) -> &'static str {
         match self {
@@ -265,11 +274,7 @@ impl BudgetHit {
         format!(
             "hierarchical: refinement stopped at the {} budget of {limit} (reached {reached}); \
              raise {} for a finer solution",
-            match self.kind {
-                Budget::Links => "link",
-                Budget::Elements => "element",
-                Budget::Memory => "memory",
-            },
+            self.kind.noun(),
             self.kind.option()
         )
     }
