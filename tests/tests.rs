@@ -15,6 +15,7 @@ mod meshing;
 mod output;
 mod penumbra;
 mod reference;
+mod scale_scenes;
 mod scenes;
 mod stress;
 mod study;
