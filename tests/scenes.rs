@@ -13,7 +13,7 @@
 //!   reverse exactly once), which also rules out T-junctions there.
 
 #[path = "../tools/scenegen/mod.rs"]
-mod scenegen;
+pub(super) mod scenegen;
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -21,22 +21,22 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Mat4};
 
-fn scenes_dir() -> PathBuf {
+pub(super) fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
 }
 
 /// One world-space triangle of a scene, with the node it came from.
 #[derive(Clone, Debug)]
-struct Tri {
-    node: String,
-    material: usize,
-    p: [DVec3; 3],
+pub(super) struct Tri {
+    pub(super) node: String,
+    pub(super) material: usize,
+    pub(super) p: [DVec3; 3],
     /// The exact f32 world positions, for edge matching.
     key: [[u32; 3]; 3],
 }
 
 impl Tri {
-    fn normal(&self) -> DVec3 {
+    pub(super) fn normal(&self) -> DVec3 {
         (self.p[1] - self.p[0])
             .cross(self.p[2] - self.p[0])
             .normalize()
@@ -73,13 +73,13 @@ impl View {
     }
 }
 
-struct Loaded {
-    doc: gltf::Document,
-    tris: Vec<Tri>,
+pub(super) struct Loaded {
+    pub(super) doc: gltf::Document,
+    pub(super) tris: Vec<Tri>,
     views: Vec<View>,
 }
 
-fn load(file: &str) -> Loaded {
+pub(super) fn load(file: &str) -> Loaded {
     let path = scenes_dir().join(file);
     let (doc, buffers, _) = gltf::import(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
     let mut tris = Vec::new();
@@ -189,7 +189,7 @@ fn first_hit(tris: &[Tri], origin: DVec3, dir: DVec3) -> Option<(usize, bool)> {
 }
 
 /// `n` directions spread evenly over the sphere (Fibonacci lattice).
-fn sphere_directions(n: usize) -> Vec<DVec3> {
+pub(super) fn sphere_directions(n: usize) -> Vec<DVec3> {
     let golden = PI * (3.0 - 5f64.sqrt());
     (0..n)
         .map(|i| {
@@ -227,7 +227,7 @@ fn check_rays_from(
 }
 
 /// Every directed edge must meet its reverse exactly once.
-fn assert_closed_oriented(file: &str, tris: &[&Tri]) {
+pub(super) fn assert_closed_oriented(file: &str, tris: &[&Tri]) {
     let mut edges: HashMap<([u32; 3], [u32; 3]), usize> = HashMap::new();
     for t in tris {
         for k in 0..3 {
@@ -262,18 +262,19 @@ fn assert_facing(file: &str, tris: &[Tri], name: &str, expected: DVec3) {
 }
 
 /// Emitted radiance of material `m` as the contract defines it.
-fn radiance(doc: &gltf::Document, m: usize) -> DVec3 {
+pub(super) fn radiance(doc: &gltf::Document, m: usize) -> DVec3 {
     let mat = doc.materials().nth(m).unwrap();
     let s = mat.emissive_strength().unwrap_or(1.0);
     DVec3::from(mat.emissive_factor().map(|c| f64::from(c * s)))
 }
 
-const FILES: [&str; 5] = [
+const FILES: [&str; 6] = [
     "cornell-box.gltf",
     "goral-box.gltf",
     "penumbra.gltf",
     "three-rooms.gltf",
     "two-squares.gltf",
+    "scale/office-10k.gltf",
 ];
 
 #[test]
@@ -346,7 +347,10 @@ fn every_scene_is_well_formed() {
             assert!(t.area() > 1e-8, "{file}: degenerate triangle in {}", t.node);
         }
         // Buffers: the Goral box embeds its buffer, the others use <stem>.bin.
-        let stem = file.trim_end_matches(".gltf");
+        let stem = Path::new(file)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .expect("a file stem");
         for b in doc.buffers() {
             let gltf::buffer::Source::Uri(uri) = b.source() else {
                 panic!("{file}: a .gltf buffer needs a uri");

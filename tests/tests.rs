@@ -17,6 +17,7 @@ mod meshing;
 mod output;
 mod penumbra;
 mod reference;
+mod scale_scenes;
 mod scenes;
 mod stress;
 mod study;

@@ -1,31 +1,62 @@
-//! Writes nusselt's bundled scenes (glTF 2.0) and their README.
+//! Writes nusselt's bundled scenes (glTF 2.0) and their README, or one
+//! member of the scale-up family.
 //!
-//! Usage: `cargo run --release --example gen-scenes -- scenes/`
+//! Usage:
+//! - `cargo run --release --example gen-scenes -- scenes/`: every bundled
+//!   scene (including `scale/office-10k`) and `scenes/README.md`;
+//! - `cargo run --release --example gen-scenes -- --scale 1000000 DIR`: the
+//!   scale-up scene for about that many triangles, as
+//!   `DIR/office-<size>.gltf` and `.bin` (see `tools/scenegen/scale.rs`).
 //!
 //! The output is deterministic: running it again gives byte-identical files.
 //! The scene definitions live in `tools/scenegen/`.
 
 mod scenegen;
 
+use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-fn main() -> ExitCode {
-    let mut args = std::env::args_os().skip(1);
-    let (Some(dir), None) = (args.next(), args.next()) else {
-        eprintln!("usage: gen-scenes OUTPUT_DIR");
-        return ExitCode::from(2);
-    };
-    match scenegen::write_all(&PathBuf::from(dir)) {
-        Ok(paths) => {
-            for p in paths {
-                println!("wrote {}", p.display());
+use anyhow::{Context, Result, bail};
+
+/// Largest accepted `--scale` target: the loader's triangle cap is far
+/// above it, but such files are gigabytes.
+const MAX_SCALE: usize = 20_000_000;
+
+const USAGE: &str = "usage: gen-scenes OUTPUT_DIR | gen-scenes --scale TRIANGLES OUTPUT_DIR";
+
+fn run(args: &[OsString]) -> Result<()> {
+    let paths = match args {
+        [dir] if dir != "--scale" => scenegen::write_all(&PathBuf::from(dir))?,
+        [flag, target, dir] if flag == "--scale" => {
+            let target: usize = target
+                .to_str()
+                .and_then(|t| t.replace('_', "").parse().ok())
+                .with_context(|| {
+                    format!("--scale {}: not a whole number", target.to_string_lossy())
+                })?;
+            if !(1..=MAX_SCALE).contains(&target) {
+                bail!("--scale {target}: must lie in 1..={MAX_SCALE}");
             }
-            ExitCode::SUCCESS
+            let (paths, triangles) = scenegen::write_scale(&PathBuf::from(dir), target)?;
+            println!("{triangles} triangles (target {target})");
+            paths
         }
+        _ => bail!("{USAGE}"),
+    };
+    for p in paths {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args: Vec<OsString> = std::env::args_os().skip(1).collect();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            ExitCode::from(2)
         }
     }
 }

@@ -280,7 +280,7 @@ pub fn encode(scene: &SceneDef) -> Result<(json::Root, Vec<u8>)> {
     }
 
     let scene_index = root.push(json::Scene {
-        name: Some(scene.stem.to_owned()),
+        name: Some(scene.stem.clone()),
         nodes: scene
             .roots
             .iter()
@@ -301,7 +301,7 @@ pub fn encode(scene: &SceneDef) -> Result<(json::Root, Vec<u8>)> {
     };
     root.push(json::Buffer {
         byte_length: USize64(bin.len() as u64),
-        name: Some(scene.stem.to_owned()),
+        name: Some(scene.stem.clone()),
         uri: Some(uri),
         extensions: None,
         extras: Default::default(),

@@ -114,14 +114,16 @@ fn shells() -> Vec<(String, Vec<Tri>)> {
     groups
 }
 
-fn table() -> Vec<Tri> {
+/// A 1.4 m × 0.8 m table centred on the origin, its top 0.76 m high, on
+/// four round legs of `leg_segments` sides.
+pub fn table(leg_segments: usize) -> Vec<Tri> {
     let mut t = cuboid(v(-0.7, 0.72, -0.4), v(0.7, 0.76, 0.4), &[]);
     for (sx, sz) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
         t.extend(cylinder(
             v(0.62 * sx, 0.0, 0.32 * sz),
             0.03,
             0.72,
-            12,
+            leg_segments,
             1,
             false,
             false,
@@ -131,7 +133,7 @@ fn table() -> Vec<Tri> {
 }
 
 /// A chair centred on the origin, its back on the +z side.
-fn chair() -> Vec<Tri> {
+pub fn chair() -> Vec<Tri> {
     let mut t = cuboid(v(-0.22, 0.42, -0.22), v(0.22, 0.46, 0.22), &[]);
     for (sx, sz) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
         let c = v(0.19 * sx, 0.0, 0.19 * sz);
@@ -150,7 +152,7 @@ fn chair() -> Vec<Tri> {
 }
 
 /// Side panels and boards of a 1 m × 1.8 m × 0.3 m open bookshelf.
-fn bookshelf() -> Vec<Tri> {
+pub fn bookshelf() -> Vec<Tri> {
     let mut t = cuboid(v(0.0, 0.0, 0.0), v(0.02, 1.8, 0.3), &[Side::NegY]);
     t.extend(cuboid(v(0.98, 0.0, 0.0), v(1.0, 1.8, 0.3), &[Side::NegY]));
     for (i, y) in SHELF_LEVELS.iter().enumerate() {
@@ -167,7 +169,7 @@ const SHELF_LEVELS: [f64; 5] = [0.0, 0.45, 0.9, 1.35, 1.78];
 
 /// Books standing on the three lower boards, 1 cm apart, sizes from a
 /// fixed table.
-fn books() -> Vec<Tri> {
+pub fn books() -> Vec<Tri> {
     const SIZES: [(f64, f64); 6] = [
         (0.05, 0.28),
         (0.04, 0.24),
@@ -323,7 +325,7 @@ covers x, z ∈ [2, 3] on room A's ceiling):
     }
 
     // Room A: furniture under one group node (identity transform).
-    let table_mesh = s.add_mesh("table", walnut, table());
+    let table_mesh = s.add_mesh("table", walnut, table(12));
     let ball_mesh = s.add_mesh("ball", orange, sphere(v(0.0, 0.12, 0.0), 0.12, 24, 16));
     let chair_mesh = s.add_mesh("chair", fabric, chair());
     let shelf_mesh = s.add_mesh("bookshelf", pine, bookshelf());

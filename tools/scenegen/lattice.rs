@@ -69,16 +69,19 @@ impl Lattice {
 
     /// Opens every cell whose centre lies inside the box and tags it.
     pub fn open(&mut self, min: DVec3, max: DVec3, region: usize) {
-        let [nx, ny, nz] = self.dims();
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let (lo, hi) = self.bounds(i, j, k);
-                    let c = (lo + hi) * 0.5;
-                    if c.cmpgt(min).all() && c.cmplt(max).all() {
-                        let id = self.idx(i, j, k);
-                        self.cells[id] = Some(region);
-                    }
+        // Cell centres increase along each axis, so the cells inside form
+        // one index range per axis.
+        let [xr, yr, zr] = [
+            (&self.xs, min.x, max.x),
+            (&self.ys, min.y, max.y),
+            (&self.zs, min.z, max.z),
+        ]
+        .map(|(lines, lo, hi)| centres_within(lines, lo, hi));
+        for k in zr {
+            for j in yr.clone() {
+                for i in xr.clone() {
+                    let id = self.idx(i, j, k);
+                    self.cells[id] = Some(region);
                 }
             }
         }
@@ -129,6 +132,15 @@ impl Lattice {
         }
         faces
     }
+}
+
+/// The cells between consecutive `lines` whose centres lie strictly
+/// between `lo` and `hi`.
+fn centres_within(lines: &[f64], lo: f64, hi: f64) -> std::ops::Range<usize> {
+    let centres: Vec<f64> = lines.windows(2).map(|w| (w[0] + w[1]) * 0.5).collect();
+    let start = centres.partition_point(|&c| c <= lo);
+    let end = centres.partition_point(|&c| c < hi);
+    start..end.max(start)
 }
 
 /// Evenly spaced lines from `start` to `end` inclusive, about `step` apart.

@@ -2,8 +2,10 @@
 //!
 //! Owns the scene definitions (`cornell`, `goral`, `penumbra`,
 //! `two_squares`, `interior`), the stress scenes of `scenes/stress/`
-//! (`stress`), their encoding to glTF (`encode`) and the scenes' README
-//! (`readme`, covering both). Invariant: generation is a pure function of this code, so the
+//! (`stress`), the scale-up family of `scenes/scale/` (`scale`; only its
+//! 10⁴-triangle member is bundled, the others are written on demand by
+//! [`write_scale`]), their encoding to glTF (`encode`) and the scenes'
+//! README (`readme`, covering all three). Invariant: generation is a pure function of this code, so the
 //! files in `scenes/` are byte-identical on every run; the test
 //! `scenes::bundled_scenes_are_up_to_date` regenerates them and compares.
 
@@ -15,6 +17,7 @@ pub mod lattice;
 pub mod model;
 pub mod penumbra;
 pub mod readme;
+pub mod scale;
 pub mod shapes;
 pub mod stress;
 pub mod two_squares;
@@ -39,6 +42,15 @@ pub fn scenes() -> Vec<SceneDef> {
 /// Folder of the stress scenes, relative to the bundled scenes' folder.
 pub const STRESS_DIR: &str = "stress";
 
+/// Folder of the scale-up scenes, relative to the bundled scenes' folder.
+pub const SCALE_DIR: &str = "scale";
+
+/// Target triangle count of the bundled member of the scale-up family.
+pub const BUNDLED_SCALE: usize = 10_000;
+
+/// Targets of the scale-up family that the README describes.
+pub const SCALE_TARGETS: [usize; 3] = [10_000, 100_000, 1_000_000];
+
 /// Appends the files of `scene` (its `.gltf`, and its `.bin` if external),
 /// named relative to the scenes' folder with the prefix `dir`.
 fn push_scene(files: &mut Vec<(String, Vec<u8>)>, dir: &str, scene: &SceneDef) -> Result<()> {
@@ -58,6 +70,7 @@ fn push_scene(files: &mut Vec<(String, Vec<u8>)>, dir: &str, scene: &SceneDef) -
 pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
     let scenes = scenes();
     let stress = stress::scenes();
+    let office = scale::scene(BUNDLED_SCALE);
     let mut files = Vec::new();
     for scene in &scenes {
         push_scene(&mut files, "", scene)?;
@@ -65,9 +78,10 @@ pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
     for s in &stress {
         push_scene(&mut files, &format!("{STRESS_DIR}/"), &s.scene)?;
     }
+    push_scene(&mut files, &format!("{SCALE_DIR}/"), &office)?;
     files.push((
         "README.md".to_owned(),
-        readme::readme(&scenes, &stress)?.into_bytes(),
+        readme::readme(&scenes, &stress, &office)?.into_bytes(),
     ));
     Ok(files)
 }
@@ -75,9 +89,24 @@ pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
 /// Writes every file of [`render_all`] into `dir` (created if missing) and
 /// returns the paths written.
 pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
+    write_files(dir, render_all()?)
+}
+
+/// Writes the scale-up scene for `target` triangles into `dir` (created if
+/// missing), as `office-<size>.gltf` and `.bin`, and returns the paths
+/// written and the scene's triangle count.
+pub fn write_scale(dir: &Path, target: usize) -> Result<(Vec<PathBuf>, usize)> {
+    let scene = scale::scene(target);
+    let mut files = Vec::new();
+    push_scene(&mut files, "", &scene)?;
+    Ok((write_files(dir, files)?, readme::triangle_count(&scene)))
+}
+
+/// Writes `files` (path relative to `dir`, bytes) into `dir`.
+fn write_files(dir: &Path, files: Vec<(String, Vec<u8>)>) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
-    for (name, bytes) in render_all()? {
+    for (name, bytes) in files {
         let path = dir.join(&name);
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent)

@@ -87,8 +87,8 @@ pub enum BufferStorage {
 #[derive(Clone, Debug)]
 pub struct SceneDef {
     /// File name without `.gltf`.
-    pub stem: &'static str,
-    pub title: &'static str,
+    pub stem: String,
+    pub title: String,
     /// Markdown prose for the README: what the scene shows and why.
     pub about: String,
     pub storage: BufferStorage,
@@ -100,10 +100,10 @@ pub struct SceneDef {
 }
 
 impl SceneDef {
-    pub fn new(stem: &'static str, title: &'static str, storage: BufferStorage) -> SceneDef {
+    pub fn new(stem: &str, title: &str, storage: BufferStorage) -> SceneDef {
         SceneDef {
-            stem,
-            title,
+            stem: stem.to_owned(),
+            title: title.to_owned(),
             about: String::new(),
             storage,
             materials: Vec::new(),
