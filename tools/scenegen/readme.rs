@@ -314,7 +314,9 @@ is small, so that the tests in `tests/stress.rs` solve a fast subset of them in 
 check the invariants every method must keep there: no panic, finite and non-negative \
 outputs, no energy created, non-convergence reported. The conventions are those above; \
 unlike the bundled scenes, some stress scenes overlap or interpenetrate on purpose. \
-\"Expected to struggle\" is the literature's and our expectation, not a measurement.\n"
+\"Expected to struggle\" is the literature's and our expectation, not a measurement; \
+the measurements are in the failure-mode table, [stress/FAILURES.md](stress/FAILURES.md) \
+(`cargo run --release --example failure-table`).\n"
     )?;
     writeln!(out, "| scene | title | triangles | stresses |")?;
     writeln!(out, "|---|---|---|---|")?;
