@@ -20,11 +20,10 @@
 //! - Symptoms are derived from the measurements by fixed rules
 //!   ([`symptoms`]), so regenerating the table cannot flatter a method.
 
+use std::f64::consts::PI;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 use std::time::Instant;
-
-use std::f64::consts::PI;
 
 use glam::DVec3;
 
@@ -77,6 +76,17 @@ impl Default for TableSettings {
     }
 }
 
+impl TableSettings {
+    /// The scene camera's view at the table's size.
+    pub fn view(&self) -> ViewOverrides {
+        ViewOverrides {
+            width: Some(self.width),
+            height: Some(self.height),
+            ..ViewOverrides::default()
+        }
+    }
+}
+
 /// One method of the table.
 #[derive(Clone, Debug)]
 pub struct TableMethod {
@@ -95,11 +105,7 @@ pub fn table_methods(t: &TableSettings) -> Vec<TableMethod> {
             samples_per_pixel: t.render_spp,
             seed: t.seed,
         },
-        view: ViewOverrides {
-            width: Some(t.width),
-            height: Some(t.height),
-            ..ViewOverrides::default()
-        },
+        view: t.view(),
         convergence: Convergence {
             max_iterations: t.max_sweeps,
             ..Convergence::default()
@@ -688,12 +694,7 @@ pub fn scene_table(
     cache: Option<&Path>,
     mut each: impl FnMut(&str, &Outcome),
 ) -> Result<SceneTable> {
-    let overrides = ViewOverrides {
-        width: Some(t.width),
-        height: Some(t.height),
-        ..ViewOverrides::default()
-    };
-    let view = View::resolve(scene.cameras.first(), scene.bounds, &overrides)?;
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &t.view())?;
     let reference = reference(scene, name, &view, t, cache)?;
     let exact = closed_form(name, scene);
     let mut rows = Vec::new();

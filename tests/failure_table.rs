@@ -13,15 +13,8 @@ use std::path::Path;
 use nusselt::failures::{
     self, Outcome, Quantity, SceneTable, TableMethod, TableSettings, closed_form,
 };
-use nusselt::load::{LoadOptions, load_scene};
-use nusselt::scene::Scene;
 
-fn stress_scene(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/stress")
-        .join(format!("{name}.gltf"));
-    load_scene(&path, &LoadOptions::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
+use crate::stress::stress_scene;
 
 fn small() -> TableSettings {
     TableSettings {

@@ -59,7 +59,7 @@ fn slow_tests() -> bool {
     std::env::var_os("NUSSELT_SLOW_TESTS").is_some_and(|v| v == "1")
 }
 
-fn stress_scene(name: &str) -> Scene {
+pub fn stress_scene(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes/stress")
         .join(format!("{name}.gltf"));
