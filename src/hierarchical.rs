@@ -1,6 +1,8 @@
 //! The hierarchical radiosity solver [HSA91] with multigridding: initial
-//! linking of the input patches, oracle-driven link refinement, gradient
-//! refinement, and gather + push-pull iterations.
+//! linking (from the root cluster's self-link when clustering,
+//! [`crate::cluster`], else every facing pair of input patches),
+//! oracle-driven link refinement, gradient refinement, and gather +
+//! push-pull iterations (through the cluster levels too).
 //!
 //! Owns: [`Accuracy`] (the presets and every threshold),
 //! [`HierarchicalSettings`] (with the resource budgets, [`BudgetHit`]),
@@ -19,13 +21,17 @@
 //! - After [`solve_hierarchical`], every element's radiosity is consistent
 //!   with push-pull: B = E + ρ H at leaves, the area-weighted mean of the
 //!   children above.
-//! - Resource budgets: no split makes the link count exceed `max_links`,
-//!   the element count exceed `max_elements`, or [`memory_estimate`]
-//!   exceed `memory_budget`; a refused split keeps its link as it is, the
-//!   round loop stops, and [`HierarchicalSolution::budget`] names the
-//!   first budget that refused one. Every `Hierarchy::split` call goes
-//!   through `Solver::refuse_split`. (The initial patch-to-patch links
-//!   are not budgeted.)
+//! - Resource budgets: no split or cluster opening makes the link count
+//!   exceed `max_links`, the element count exceed `max_elements`, or
+//!   [`memory_estimate`] exceed `memory_budget`, nor happens after
+//!   `time_budget` seconds; a refused split keeps its link, a refused
+//!   opening keeps its cluster link, the round loop stops, and
+//!   [`HierarchicalSolution::budget`] names the first budget that refused
+//!   one. Every `Hierarchy::split` call goes through `Solver::refuse_split`,
+//!   every opening through `Solver::refuse_links`. (Without clustering the
+//!   initial patch-to-patch links are not budgeted.)
+//! - Cluster links count in the link total and the budgets; their
+//!   irradiance is added to the patch roots' before push-pull.
 //!
 //! The loop ("multigridding", [HSA91] §5): refine every link with the
 //! current radiosities; gather + push-pull until the total power Σ B·A
@@ -39,6 +45,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::cluster::{ClusterLink, Clusters, Evaluation, Node, Step};
 use crate::discontinuity::Segment;
 use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy, split_corners};
@@ -72,6 +79,11 @@ pub struct Accuracy {
     /// power oracle: largest accepted A_r F V ρ_r B_s, as a fraction of the
     /// largest patch emitted power.
     pub power_eps: f64,
+    /// Cluster oracle: largest accepted ρ_r times the irradiance error of
+    /// a link with a cluster at one end (W/m², as a fraction of the mean
+    /// emitted exitance). Finer than `bf_eps`: a cluster link also shares
+    /// its light among members it cannot see apart ([`crate::cluster`]).
+    pub cluster_eps: f64,
     /// Elements at or below this fraction of the total area are not split.
     pub min_area: f64,
     /// Leaves whose radiosity differs from a sibling's by more than this
@@ -93,6 +105,7 @@ impl Accuracy {
             ff_eps: 0.05,
             bf_eps: 0.2,
             power_eps: 1e-3,
+            cluster_eps: 0.02,
             min_area: 1e-4,
             gradient_tol: 0.5,
             max_links: None,
@@ -109,6 +122,7 @@ impl Accuracy {
             ff_eps: 0.01,
             bf_eps: 0.03,
             power_eps: 1e-4,
+            cluster_eps: 0.003,
             min_area: 2e-5,
             gradient_tol: 0.15,
             max_links: None,
@@ -123,6 +137,7 @@ impl Accuracy {
             ff_eps: 0.002,
             bf_eps: 0.006,
             power_eps: 2e-5,
+            cluster_eps: 0.0006,
             min_area: 4e-6,
             gradient_tol: 0.05,
             max_links: None,
@@ -162,6 +177,48 @@ pub struct HierarchicalSettings {
     /// Bytes the hierarchy, the links and the solver's working arrays may
     /// take, as [`memory_estimate`] counts them: no split crosses it.
     pub memory_budget: u64,
+    /// Whether links start from a cluster hierarchy above the patches
+    /// ([`crate::cluster`]) or from every pair of patches.
+    pub clustering: Clustering,
+    /// Seconds of linking and refinement after which no link is opened or
+    /// split: the links as they are then are solved. Results then depend
+    /// on the machine's speed (`None`: no limit).
+    pub time_budget: Option<f64>,
+    /// View importance [SAS92]: per patch, 1 where a view sees it directly
+    /// (else 0). Refinement then weighs each receiver's link errors by the
+    /// patch's importance, this seen-ness carried back along the links
+    /// (see [`Solver::update_importance`]); `None`: every patch counts
+    /// fully.
+    #[serde(skip)]
+    pub importance: Option<Vec<f32>>,
+}
+
+/// `--clustering`: how the initial links are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Clustering {
+    /// Clusters when the scene has at least [`Clustering::AUTO_PATCHES`]
+    /// patches.
+    #[default]
+    Auto,
+    /// Always start from the root cluster's self-link.
+    On,
+    /// Link every pair of patches that face each other (k² pairs).
+    Off,
+}
+
+impl Clustering {
+    /// Patch count from which `Auto` clusters: a million patch pairs.
+    pub const AUTO_PATCHES: usize = 1000;
+
+    /// True when a scene of `patches` patches is clustered.
+    pub fn applies(self, patches: usize) -> bool {
+        match self {
+            Clustering::Auto => patches >= Clustering::AUTO_PATCHES,
+            Clustering::On => true,
+            Clustering::Off => false,
+        }
+    }
 }
 
 impl Default for HierarchicalSettings {
@@ -174,6 +231,9 @@ impl Default for HierarchicalSettings {
             tolerance: 1e-5,
             max_iterations: 10_000,
             memory_budget: DEFAULT_MEMORY_BUDGET,
+            clustering: Clustering::Auto,
+            time_budget: None,
+            importance: None,
         }
     }
 }
@@ -217,6 +277,8 @@ pub enum Budget {
     Elements,
     /// [`HierarchicalSettings::memory_budget`], in bytes.
     Memory,
+    /// [`HierarchicalSettings::time_budget`], in milliseconds.
+    Time,
 }
 
 impl Budget {
@@ -226,6 +288,7 @@ impl Budget {
             Budget::Links => "link",
             Budget::Elements => "element",
             Budget::Memory => "memory",
+            Budget::Time => "time",
         }
     }
 
@@ -235,6 +298,7 @@ impl Budget {
             Budget::Links => "--max-links",
             Budget::Elements => "--max-elements",
             Budget::Memory => "--memory-budget",
+            Budget::Time => "--time-budget",
         }
     }
 }
@@ -269,6 +333,10 @@ impl BudgetHit {
                     bytes(self.limit),
                     format!("{} estimated", bytes(self.reached)),
                 )
+            }
+            Budget::Time => {
+                let secs = |ms: u64| format!("{:.1} s", ms as f64 / 1000.0);
+                (secs(self.limit), secs(self.reached))
             }
         };
         format!(
@@ -336,12 +404,27 @@ pub struct HierarchicalSolution {
     pub times: HierarchicalTimes,
     /// The thresholds used, in scene units.
     pub thresholds: Thresholds,
+    /// The clusters and their links, when the solve clustered.
+    pub clusters: Option<Clusters>,
+    /// Per patch, the irradiance the cluster links deliver (constant over
+    /// the patch; empty without clusters), and the part of it that comes
+    /// from emission.
+    pub cluster_irradiance: Vec<DVec3>,
+    pub cluster_direct: Vec<DVec3>,
+    /// Per patch, the importance weight refinement used last (empty
+    /// without importance).
+    pub importance: Vec<f64>,
 }
 
 impl HierarchicalSolution {
-    /// Number of links.
+    /// Number of links, cluster links included.
     pub fn link_count(&self) -> u64 {
-        self.links.iter().map(|l| l.len() as u64).sum()
+        self.links.iter().map(|l| l.len() as u64).sum::<u64>() + self.cluster_link_count()
+    }
+
+    /// Number of links with a cluster at one end or both.
+    pub fn cluster_link_count(&self) -> u64 {
+        self.clusters.as_ref().map_or(0, Clusters::link_count)
     }
 
     /// Bytes held by the hierarchy and the links (capacities included).
@@ -352,12 +435,17 @@ impl HierarchicalSolution {
             .iter()
             .map(|l| l.capacity() * std::mem::size_of::<Link>())
             .sum();
-        let irradiance = self.irradiance.capacity() * std::mem::size_of::<DVec3>();
-        (self.hierarchy.memory_bytes() + lists + links + irradiance) as u64
+        let irradiance = (self.irradiance.capacity()
+            + self.cluster_irradiance.capacity()
+            + self.cluster_direct.capacity())
+            * std::mem::size_of::<DVec3>();
+        let clusters = self.clusters.as_ref().map_or(0, Clusters::memory_bytes);
+        (self.hierarchy.memory_bytes() + lists + links + irradiance) as u64 + clusters
     }
 
-    /// Irradiance per element from the links whose source lies on a patch
-    /// accepted by `from_patch`, own links plus those of every ancestor.
+    /// Irradiance per element from the element links whose source lies on
+    /// a patch accepted by `from_patch`, own links plus those of every
+    /// ancestor (cluster links, which mix patches, are not counted).
     pub fn irradiance_from(&self, from_patch: impl Fn(u32) -> bool) -> Vec<DVec3> {
         let h = &self.hierarchy;
         let own: Vec<DVec3> = self
@@ -430,9 +518,66 @@ struct Solver<'a> {
     /// Elements `..measured` have their exposure measured (the arena only
     /// grows).
     measured: usize,
+    clusters: Option<Clusters>,
+    start: Instant,
+    /// Per patch, the weight in [0, 1] of its links' errors (empty: 1).
+    weight: Vec<f64>,
+}
+
+/// Jacobi sweeps of the importance equation per update.
+const IMPORTANCE_SWEEPS: usize = 12;
+
+/// ρ of `patch` times its importance weight (`weight` empty: ρ).
+fn weighted_rho(scene: &Scene, weight: &[f64], patch: u32) -> DVec3 {
+    let rho = scene.patches[patch as usize].reflectance;
+    weight.get(patch as usize).map_or(rho, |w| rho * *w)
 }
 
 impl Solver<'_> {
+    /// Carries the view's importance back along the links: Y = R + Kᵀ Y
+    /// per patch, R the directly seen patches and K_pq the share of p's
+    /// radiosity that its element links gather from q (Σ over links of
+    /// A_r / A_p · ρ_p · F·V), by Jacobi sweeps; the weights are Y capped
+    /// at 1. (Cluster links are left out: they carry far, weak light.)
+    fn update_importance(&mut self) {
+        let Some(seen) = &self.settings.importance else {
+            return;
+        };
+        let (scene, h) = (self.scene, &self.hierarchy);
+        let terms: Vec<(u32, u32, f64)> = self
+            .links
+            .iter()
+            .enumerate()
+            .flat_map(|(r, ls)| {
+                let re = &h.elements[r];
+                let p = &scene.patches[re.patch as usize];
+                let share = re.area / p.area * p.reflectance.max_element();
+                ls.iter()
+                    .map(move |l| (re.patch, h.get(l.source).patch, share * l.coupling()))
+            })
+            .collect();
+        let seen: Vec<f64> = seen.iter().map(|&v| f64::from(v)).collect();
+        let mut y = seen.clone();
+        for _ in 0..IMPORTANCE_SWEEPS {
+            let mut next = seen.clone();
+            for &(p, q, k) in &terms {
+                next[q as usize] += k * y[p as usize];
+            }
+            y = next;
+        }
+        self.weight = y.into_iter().map(|v| v.min(1.0)).collect();
+        if let Some(c) = &mut self.clusters {
+            c.set_weights(&self.weight);
+        }
+    }
+
+    /// True when the time budget is spent.
+    fn out_of_time(&self) -> bool {
+        self.settings
+            .time_budget
+            .is_some_and(|t| self.start.elapsed().as_secs_f64() > t)
+    }
+
     /// The budget that splitting `id` (four new elements unless it is
     /// split already) and adding `extra` links would exceed, if any.
     fn exceeded(&self, id: ElementId, extra: u64) -> Option<Budget> {
@@ -450,6 +595,8 @@ impl Solver<'_> {
             Some(Budget::Elements)
         } else if memory_estimate(elements, links) > self.settings.memory_budget {
             Some(Budget::Memory)
+        } else if self.out_of_time() {
+            Some(Budget::Time)
         } else {
             None
         }
@@ -478,6 +625,10 @@ impl Solver<'_> {
                 Budget::Memory => (
                     self.settings.memory_budget,
                     memory_estimate(elements, links),
+                ),
+                Budget::Time => (
+                    (self.settings.time_budget.unwrap_or(0.0) * 1000.0) as u64,
+                    self.start.elapsed().as_millis() as u64,
                 ),
             };
             BudgetHit {
@@ -552,6 +703,7 @@ impl Solver<'_> {
     /// moved.
     fn shadow_splits(&mut self) -> (Vec<Pair>, u64) {
         let t = self.thresholds;
+        let weight = &self.weight;
         let h = &self.hierarchy;
         let scene = self.scene;
         let eps = match t.oracle {
@@ -570,7 +722,7 @@ impl Solver<'_> {
                 if !(re.area > t.min_area) || ls.iter().all(|l| l.spread() == 0.0) {
                     return Vec::new();
                 }
-                let rho = scene.patches[re.patch as usize].reflectance;
+                let rho = weighted_rho(scene, weight, re.patch);
                 let mut per_patch: Vec<(u32, f64)> = ls
                     .iter()
                     .filter(|l| l.spread() > 0.0)
@@ -637,7 +789,7 @@ impl Solver<'_> {
                 .map(|p| {
                     let (r, s) = (p.receiver, p.source);
                     let (re, se) = (&elements[r.index()], &elements[s.index()]);
-                    let rho = scene.patches[re.patch as usize].reflectance;
+                    let rho = weighted_rho(scene, &self.weight, re.patch);
                     let state = self.hierarchy.source_state(s);
                     let skip = |l: &Link| split_at_any_visibility(t, l, re, se, &state, rho);
                     let (mut link, cast) =
@@ -692,9 +844,14 @@ impl Solver<'_> {
         splits
     }
 
-    /// Links between every pair of patches that face each other and are
-    /// not fully occluded.
+    /// The first links: from the root cluster's self-link when clustering,
+    /// else between every pair of patches that face each other; then
+    /// settled.
     fn initial_links(&mut self) -> u64 {
+        if let Some(root) = self.clusters.as_ref().and_then(|c| c.tree.root) {
+            let pairs = self.link_clusters(vec![(root, root)]);
+            return self.settle(pairs);
+        }
         let scene = self.scene;
         let tol = 1e-9 * scene.diagonal();
         let n = scene.patches.len();
@@ -722,6 +879,111 @@ impl Solver<'_> {
             .collect();
         self.n_links += pairs.len() as u64;
         self.settle(pairs)
+    }
+
+    /// Runs the cluster oracle on (receiver, source) node pairs, opening
+    /// clusters until every pair is accepted, dropped, or reaches two
+    /// patches; returns those patch pairs (facing each other) for the
+    /// element links. The pairs count as links from the start, so the
+    /// link and memory budgets see every pair still pending; an opening
+    /// the budgets refuse keeps its pair as a cluster link. (A cluster's
+    /// self-link always opens: it has no cluster-link form.)
+    fn link_clusters(&mut self, mut pending: Vec<(Node, Node)>) -> Vec<Pair> {
+        let mut patches = Vec::new();
+        let Some(mut clusters) = self.clusters.take() else {
+            return patches;
+        };
+        let (scene, bvh, seed) = (self.scene, self.bvh, self.settings.seed);
+        let tol = 1e-9 * scene.diagonal();
+        let eps = self.thresholds.cluster_eps;
+        self.n_links += pending.len() as u64;
+        while !pending.is_empty() {
+            let elements = &self.hierarchy.elements;
+            let steps: Vec<(Step, u64)> = pending
+                .par_iter()
+                .with_min_len(16)
+                .map(|&(r, s)| clusters.examine(scene, bvh, elements, r, s, eps, seed))
+                .collect();
+            let mut next = Vec::new();
+            for (&(r, s), (step, rays)) in pending.iter().zip(steps) {
+                self.rays += rays;
+                // The pair's fate when it stays a single link: kept, or gone.
+                let kept: Option<ClusterLink> = match step {
+                    Step::Drop => None,
+                    Step::Accept(link) => Some(link),
+                    Step::SelfLink(c) => {
+                        let [a, b] = clusters.kids(c);
+                        self.n_links += 3;
+                        next.extend([(a, b), (b, a), (a, a), (b, b)]);
+                        continue;
+                    }
+                    Step::Patches => {
+                        let (Node::Patch(a), Node::Patch(b)) = (r, s) else {
+                            unreachable!("the oracle names two patches")
+                        };
+                        let (pa, pb) = (&scene.patches[a as usize], &scene.patches[b as usize]);
+                        if faces_each_other(pa.vertices(), pa.normal, pb.vertices(), pb.normal, tol)
+                        {
+                            patches.push(Pair::refining(ElementId(a), ElementId(b), false));
+                            continue;
+                        }
+                        None
+                    }
+                    Step::OpenReceiver | Step::OpenSource => {
+                        if self.refuse_links(1) {
+                            let (evaluation, rays) = clusters.evaluate(scene, bvh, r, s, seed);
+                            self.rays += rays;
+                            match evaluation {
+                                Evaluation::Link(link) => Some(link),
+                                _ => None,
+                            }
+                        } else {
+                            let open = if step == Step::OpenReceiver { r } else { s };
+                            let Node::Cluster(c) = open else {
+                                unreachable!("the oracle opens clusters only")
+                            };
+                            self.n_links += 1;
+                            for k in clusters.kids(c) {
+                                next.push(if step == Step::OpenReceiver {
+                                    (k, s)
+                                } else {
+                                    (r, k)
+                                });
+                            }
+                            continue;
+                        }
+                    }
+                };
+                match kept {
+                    Some(link) => clusters.add(r, link),
+                    None => self.n_links -= 1,
+                }
+            }
+            pending = next;
+        }
+        self.clusters = Some(clusters);
+        patches
+    }
+
+    /// True when `extra` more links would exceed the link or memory
+    /// budget (remembered as for a split).
+    fn refuse_links(&mut self, extra: u64) -> bool {
+        let acc = &self.settings.accuracy;
+        let links = self.n_links + extra;
+        let hit = if acc.max_links.is_some_and(|max| links > max) {
+            Some(Budget::Links)
+        } else if memory_estimate(self.hierarchy.len() as u64, links) > self.settings.memory_budget
+        {
+            Some(Budget::Memory)
+        } else if self.out_of_time() {
+            Some(Budget::Time)
+        } else {
+            None
+        };
+        if self.budget.is_none() {
+            self.budget = hit;
+        }
+        hit.is_some()
     }
 
     /// Splits every element crossed by a discontinuity segment of its patch
@@ -777,9 +1039,16 @@ impl Solver<'_> {
     /// Re-runs the oracle on every link with the current radiosities and
     /// refines those it rejects. Returns the links split.
     fn refine(&mut self) -> u64 {
-        let decisions = self.decisions();
         let mut next = Vec::new();
         let mut splits = 0;
+        let eps = self.thresholds.cluster_eps;
+        if let Some(c) = self.clusters.as_mut() {
+            let rejected = c.take_rejected(self.scene, &self.hierarchy.elements, eps);
+            self.n_links -= rejected.len() as u64;
+            splits += rejected.len() as u64;
+            next = self.link_clusters(rejected);
+        }
+        let decisions = self.decisions();
         for (r, ds) in decisions.iter().enumerate() {
             if ds.iter().all(|d| *d == Decision::Accept) {
                 continue;
@@ -817,9 +1086,10 @@ impl Solver<'_> {
                 if !leaf.is_leaf() || !(leaf.area > self.thresholds.min_area) {
                     continue;
                 }
+                let w = self.weight.get(leaf.patch as usize).copied().unwrap_or(1.0);
                 let differs = kids
                     .iter()
-                    .any(|&o| (h.get(o).radiosity - leaf.radiosity).abs().max_element() > tol);
+                    .any(|&o| w * (h.get(o).radiosity - leaf.radiosity).abs().max_element() > tol);
                 if differs {
                     marked.push(k);
                 }
@@ -828,7 +1098,7 @@ impl Solver<'_> {
         let mut pending = Vec::new();
         let mut split = 0;
         for k in marked {
-            let rho = self.scene.patches[self.hierarchy.get(k).patch as usize].reflectance;
+            let rho = weighted_rho(self.scene, &self.weight, self.hierarchy.get(k).patch);
             let own = std::mem::take(&mut self.links[k.index()]);
             let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
                 let b = (rho * self.hierarchy.get(l.source).exposed_radiosity).max_element();
@@ -899,8 +1169,14 @@ impl Solver<'_> {
         self.measure_exposure();
         let mut power = f64::NAN;
         for k in 0..self.settings.max_iterations.max(2) {
-            let gathered = self.gather();
+            let mut gathered = self.gather();
+            if let Some(c) = &self.clusters {
+                c.gather(self.scene, &self.hierarchy.elements, &mut gathered);
+            }
             let p = self.push_pull(&gathered, irradiance);
+            if let Some(c) = &mut self.clusters {
+                c.pull_from(self.scene, &self.hierarchy.elements);
+            }
             let residual = if power.is_nan() {
                 1.0
             } else if p > 0.0 {
@@ -931,7 +1207,7 @@ impl Solver<'_> {
             .enumerate()
             .map(|(r, ls)| {
                 let re = &h.elements[r];
-                let rho = scene.patches[re.patch as usize].reflectance;
+                let rho = weighted_rho(scene, &self.weight, re.patch);
                 ls.iter()
                     .map(|l| decide(&t, l, re, h.get(l.source), &h.source_state(l.source), rho))
                     .collect()
@@ -1041,6 +1317,7 @@ pub fn solve_hierarchical_guided(
         oracle: settings.oracle,
         ff_eps: acc.ff_eps,
         bf_eps: acc.bf_eps * exitance,
+        cluster_eps: acc.cluster_eps * exitance,
         power_eps: acc.power_eps * largest_power,
         min_area: acc.min_area * area,
         rays: settings.visibility_rays.max(1),
@@ -1056,11 +1333,25 @@ pub fn solve_hierarchical_guided(
         rays: 0,
         budget: None,
         measured: 0,
+        clusters: None,
+        start,
+        weight: Vec::new(),
     };
     let mut times = HierarchicalTimes::default();
     let phase = progress.phase("hierarchical", acc.max_rounds.max(1) as u64);
 
     let t = Instant::now();
+    if settings.clustering.applies(scene.patches.len()) {
+        solver.clusters = Some(Clusters::new(scene));
+    }
+    if let Some(seen) = &settings.importance {
+        solver.weight = (0..scene.patches.len())
+            .map(|p| seen.get(p).map_or(0.0, |&v| f64::from(v).clamp(0.0, 1.0)))
+            .collect();
+        if let Some(c) = &mut solver.clusters {
+            c.set_weights(&solver.weight);
+        }
+    }
     let first_splits = solver.initial_links();
     times.linking = t.elapsed().as_secs_f64();
     let t = Instant::now();
@@ -1101,9 +1392,10 @@ pub fn solve_hierarchical_guided(
             rounds_exhausted = solver.rejected_links() > 0;
             break;
         }
-        // Refine with the new radiosities.
+        // Refine with the new radiosities (and importance).
         round_start = Instant::now();
         let t = Instant::now();
+        solver.update_importance();
         split_links = solver.refine();
         gradient_splits = solver.refine_gradients(acc.gradient_tol * exitance);
         times.refinement += t.elapsed().as_secs_f64();
@@ -1119,7 +1411,15 @@ pub fn solve_hierarchical_guided(
     solver.hierarchy.elements.shrink_to_fit();
     irradiance.shrink_to_fit();
     let budget = solver.budget_hit();
+    let (cluster_irradiance, cluster_direct) = solver.clusters.as_ref().map_or_else(
+        || (Vec::new(), Vec::new()),
+        |c| c.patch_irradiance(scene, &solver.hierarchy.elements),
+    );
     HierarchicalSolution {
+        importance: solver.weight,
+        clusters: solver.clusters,
+        cluster_irradiance,
+        cluster_direct,
         links: solver.links,
         irradiance,
         history,
@@ -1251,6 +1551,12 @@ pub fn point_radiosity(
                 v = visible(emitter.vertices(), emitter.normal, PENUMBRA_RAYS, stream);
             }
             irradiance += f * v.unwrap_or(0.0) * emitter.emission;
+        }
+    }
+    if let Some(c) = solution.cluster_irradiance.get(e.patch as usize) {
+        irradiance += *c;
+        if !gather.direct.is_empty() {
+            irradiance -= solution.cluster_direct[e.patch as usize];
         }
     }
     let mut id = Some(leaf);

@@ -12,6 +12,7 @@
 
 pub mod chart;
 pub mod closed_form;
+pub mod cluster;
 pub mod compare;
 pub mod discontinuity;
 pub mod error;

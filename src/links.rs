@@ -431,6 +431,8 @@ pub struct Thresholds {
     pub bf_eps: f64,
     /// Absolute power threshold, W (power).
     pub power_eps: f64,
+    /// Absolute cluster-link threshold, W/m² ([`crate::cluster`]).
+    pub cluster_eps: f64,
     /// Elements at or below this area (m²) are never split.
     pub min_area: f64,
     /// Visibility rays per link (V_err = 1/rays for an unoccluded link).
@@ -630,6 +632,7 @@ mod tests {
             ff_eps: 0.0,
             bf_eps: 1.0,
             power_eps: 0.0,
+            cluster_eps: 0.0,
             min_area: 0.0,
             rays: 16,
         };

@@ -16,7 +16,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
-use nusselt::hierarchical::{Accuracy, HierarchicalSettings, Preset};
+use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
 use nusselt::links::Oracle;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
@@ -202,6 +202,12 @@ struct SolveArgs {
     /// clean).
     #[arg(long)]
     wireframe: bool,
+    /// Hierarchical: refine only as much as the view (the scene's camera or
+    /// the view flags) needs: link errors count by the importance of their
+    /// receiver, seen directly or reflecting toward what is seen
+    /// [SAS92]. The report's `importance` says it was used.
+    #[arg(long)]
+    importance: bool,
     #[command(flatten)]
     kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
@@ -306,6 +312,10 @@ struct HierarchicalArgs {
     /// largest patch emitted power.
     #[arg(long)]
     power_eps: Option<f64>,
+    /// Cluster oracle: largest ρ·(irradiance error) a link with a cluster
+    /// at one end may keep, as a fraction of the mean emitted exitance.
+    #[arg(long)]
+    cluster_eps: Option<f64>,
     /// Smallest element, as a fraction of the total surface area.
     #[arg(long)]
     min_area: Option<f64>,
@@ -324,6 +334,23 @@ struct HierarchicalArgs {
     /// Refinement rounds (refine + solve) at most.
     #[arg(long)]
     max_rounds: Option<usize>,
+    /// Start the links from a cluster hierarchy above the patches (no
+    /// step over every pair of patches); auto clusters scenes of 1,000
+    /// patches or more.
+    #[arg(long, value_enum, default_value_t = ClusteringName::Auto)]
+    clustering: ClusteringName,
+    /// Seconds of linking and refinement after which the links as they are
+    /// get solved (the report says so); results then depend on the
+    /// machine's speed.
+    #[arg(long, value_name = "SECONDS")]
+    time_budget: Option<f64>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum ClusteringName {
+    Auto,
+    On,
+    Off,
 }
 
 impl HierarchicalArgs {
@@ -361,6 +388,7 @@ impl HierarchicalArgs {
         positive("ff-eps", self.ff_eps, &mut a.ff_eps)?;
         positive("bf-eps", self.bf_eps, &mut a.bf_eps)?;
         positive("power-eps", self.power_eps, &mut a.power_eps)?;
+        positive("cluster-eps", self.cluster_eps, &mut a.cluster_eps)?;
         positive("min-area", self.min_area, &mut a.min_area)?;
         if let Some(g) = self.gradient_tol {
             if !(g >= 0.0 && g.is_finite()) {
@@ -388,6 +416,18 @@ impl HierarchicalArgs {
             tolerance,
             max_iterations,
             memory_budget,
+            time_budget: match self.time_budget {
+                Some(t) if !(t > 0.0 && t.is_finite()) => {
+                    bail!("--time-budget must be a positive number of seconds")
+                }
+                t => t,
+            },
+            importance: None,
+            clustering: match self.clustering {
+                ClusteringName::Auto => Clustering::Auto,
+                ClusteringName::On => Clustering::On,
+                ClusteringName::Off => Clustering::Off,
+            },
         })
     }
 }
@@ -628,7 +668,11 @@ fn run_solve(args: SolveArgs) -> Result<()> {
         view: args.view.overrides(),
         snapshots: args.snapshots.clone(),
         wireframe: args.wireframe,
+        importance: args.importance,
     };
+    if args.importance && args.method != Method::Hierarchical {
+        bail!("--importance needs --method hierarchical");
+    }
     let mut run = pipeline::solve(&scene, &settings, &progress)
         .with_context(|| format!("solving {}", args.scene.display()))?;
     run.report.scene = args.scene.display().to_string();

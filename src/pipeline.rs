@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use serde_json::json;
 
 use crate::discontinuity::{DiscontinuitySettings, discontinuity_segments};
@@ -24,7 +25,7 @@ use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::output::{self, OutputSet};
 use crate::progress::Progress;
 use crate::render::{RenderSettings, render};
-use crate::report::{ConvergenceReport, Counts, HistoryEntry, Power, Report};
+use crate::report::{ConvergenceReport, Counts, HistoryEntry, ImportanceReport, Power, Report};
 use crate::scene::Scene;
 use crate::solve::{ClassicMethod, Convergence, System};
 use crate::uniform::UniformMesh;
@@ -74,6 +75,9 @@ pub struct SolveSettings {
     pub snapshots: Vec<usize>,
     /// Draw the output mesh's edges over `render.png` (not `render.exr`).
     pub wireframe: bool,
+    /// Hierarchical: weigh refinement by the importance of the solve's view
+    /// ([`view_importance`]).
+    pub importance: bool,
 }
 
 impl Default for SolveSettings {
@@ -90,6 +94,7 @@ impl Default for SolveSettings {
             view: ViewOverrides::default(),
             snapshots: Vec::new(),
             wireframe: false,
+            importance: false,
         }
     }
 }
@@ -131,6 +136,42 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
     }
 }
 
+/// Rays per side at most of [`view_importance`]'s grid.
+const IMPORTANCE_GRID: u32 = 256;
+
+/// The patches `view` sees directly: 1 for each patch hit first (on its
+/// front) by a ray of a grid over the image (at most [`IMPORTANCE_GRID`]
+/// rays a side, pixel centres), 0 for the others.
+pub fn view_importance(scene: &Scene, bvh: &TriangleBvh, view: &View) -> Vec<f32> {
+    let scale = (f64::from(IMPORTANCE_GRID) / f64::from(view.width.max(view.height))).min(1.0);
+    let (w, h) = (
+        ((f64::from(view.width) * scale).round() as u32).max(1),
+        ((f64::from(view.height) * scale).round() as u32).max(1),
+    );
+    let far = 4.0 * scene.diagonal() + view.eye.distance(0.5 * (scene.bounds.0 + scene.bounds.1));
+    let hits: Vec<Option<u32>> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (f64::from(i % w) + 0.5, f64::from(i / w) + 0.5);
+            let (eye, dir) = view.ray(x / scale, y / scale);
+            let hit = bvh.closest_hit(eye, dir, far)?;
+            let t = &scene.triangles[hit.triangle as usize];
+            let p = t.positions;
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+            if normal.dot(dir) < 0.0 {
+                Some(t.front_patch)
+            } else {
+                t.back_patch
+            }
+        })
+        .collect();
+    let mut seen = vec![0.0; scene.patches.len()];
+    for p in hits.into_iter().flatten() {
+        seen[p as usize] = 1.0;
+    }
+    seen
+}
+
 /// The hierarchical path: discontinuity segments (for that mesh mode), link,
 /// refine and solve [HSA91], then the output mesh of the mode. Snapshots
 /// show the final state.
@@ -163,7 +204,27 @@ fn solve_with_hierarchy(
     };
     report.times.discontinuities = secs(t);
 
+    let importance = settings
+        .importance
+        .then(|| view_importance(scene, &bvh, &view));
+    let with_importance;
+    let hs = if let Some(seen) = importance {
+        with_importance = HierarchicalSettings {
+            importance: Some(seen),
+            ..hs.clone()
+        };
+        &with_importance
+    } else {
+        hs
+    };
     let solution = solve_hierarchical_guided(scene, &bvh, hs, &guide, progress);
+    if let Some(seen) = &hs.importance {
+        let count = |f: &dyn Fn(usize) -> bool| (0..scene.patches.len()).filter(|&p| f(p)).count();
+        report.importance = Some(ImportanceReport {
+            patches_seen: count(&|p| seen[p] > 0.0),
+            patches_weighted: count(&|p| solution.importance.get(p).is_some_and(|&w| w > 0.01)),
+        });
+    }
     report.times.linking = solution.times.linking;
     report.times.refinement = solution.times.refinement;
     report.times.solve = solution.times.solve;
@@ -244,6 +305,8 @@ fn solve_with_hierarchy(
         memory_bytes: solution.memory_bytes(),
         output_vertices: out.vertex_count(),
         output_triangles: out.triangles.len(),
+        clusters: solution.clusters.as_ref().map_or(0, |c| c.tree.len()),
+        cluster_links: solution.cluster_link_count(),
     };
     let th = &solution.thresholds;
     report.settings = json!({
@@ -256,6 +319,7 @@ fn solve_with_hierarchy(
             "ff_eps": th.ff_eps,
             "bf_eps": th.bf_eps,
             "power_eps": th.power_eps,
+            "cluster_eps": th.cluster_eps,
             "min_area": th.min_area,
         },
         "render": settings.render,
@@ -403,6 +467,8 @@ fn solve_classic(
         memory_bytes: FormFactorMatrix::bytes_for(mesh.elements.len()),
         output_vertices: out.vertex_count(),
         output_triangles: out.triangles.len(),
+        clusters: 0,
+        cluster_links: 0,
     };
     report.max_row_sum = stats.max_row_sum;
     report.mean_row_sum = stats.mean_row_sum;

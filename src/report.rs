@@ -51,6 +51,23 @@ pub struct Counts {
     pub memory_bytes: u64,
     pub output_vertices: usize,
     pub output_triangles: usize,
+    /// Hierarchical with clustering: clusters above the patches, and the
+    /// links (counted in `links`) with a cluster at one end or both; 0
+    /// without.
+    #[serde(default)]
+    pub clusters: usize,
+    #[serde(default)]
+    pub cluster_links: u64,
+}
+
+/// How the view's importance weighed refinement.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ImportanceReport {
+    /// Patches the view sees directly (importance 1).
+    pub patches_seen: usize,
+    /// Patches whose links' errors counted at more than 1 % (seen, or
+    /// reflecting light toward what is seen).
+    pub patches_weighted: usize,
 }
 
 /// One step of an iterative solve.
@@ -103,6 +120,10 @@ pub struct Report {
     /// when none did, and for the classic methods).
     #[serde(default)]
     pub budget: Option<crate::hierarchical::BudgetHit>,
+    /// Hierarchical with `--importance`: refinement was weighed by the
+    /// view's importance (`null` when it was not).
+    #[serde(default)]
+    pub importance: Option<ImportanceReport>,
     /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
     pub max_row_sum: f64,
     pub mean_row_sum: f64,

@@ -1,8 +1,9 @@
 //! Ray queries against a triangle set: occlusion of point-to-point segments
 //! and closest hits, on an `obvhs` compressed wide BVH.
 //!
-//! Owns: the only use of `obvhs`. Geometry is held in f32 (what obvhs
-//! traverses); callers pass f64 points.
+//! Owns: ray queries (obvhs's wide BVH; the other use of obvhs is the
+//! cluster tree's BVH2, [`crate::cluster`]). Geometry is held in f32 (what
+//! obvhs traverses); callers pass f64 points.
 //!
 //! Invariants:
 //! - A segment query ignores hits within `endpoint_gap` (a fixed fraction of

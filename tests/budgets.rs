@@ -4,7 +4,8 @@
 //! budget (or says `null`); the command line checks the values.
 
 use nusselt::hierarchical::{
-    Accuracy, Budget, BudgetHit, HierarchicalSettings, memory_estimate, solve_hierarchical_guided,
+    Accuracy, Budget, BudgetHit, Clustering, HierarchicalSettings, memory_estimate,
+    solve_hierarchical_guided,
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::{SolveRun, SolveSettings, scene_bvh, solve};
@@ -136,6 +137,53 @@ fn link_budget_is_reported() {
     assert!(hit.reached <= 2_000);
 }
 
+/// A time budget already spent when linking starts: nothing is split or
+/// opened, the first links are solved as they are, and the report says
+/// so (with the clusters forced on, the root's children's links stay
+/// coarse).
+#[test]
+fn spent_time_budget_solves_the_first_links() {
+    let scene = cornell();
+    let free = run(&scene, &settings(|h| h.clustering = Clustering::On));
+    assert!(free.report.budget.is_none());
+    let r = run(
+        &scene,
+        &settings(|h| {
+            h.clustering = Clustering::On;
+            h.time_budget = Some(1e-9);
+        }),
+    );
+    let hit = hit(&r);
+    assert_eq!(hit.kind, Budget::Time);
+    assert_eq!(hit.limit, 0);
+    assert_eq!(
+        r.report.convergence.rounds.len(),
+        1,
+        "no round after the hit"
+    );
+    let (c, f) = (&r.report.counts, &free.report.counts);
+    assert_eq!(c.elements, c.patches, "nothing split");
+    assert!(c.links < f.links / 10, "{} vs {}", c.links, f.links);
+    assert!(c.cluster_links > 0, "{c:?}");
+}
+
+/// Cluster openings count against the link budget like splits.
+#[test]
+fn link_budget_binds_cluster_openings() {
+    let scene = cornell();
+    let r = run(
+        &scene,
+        &settings(|h| {
+            h.clustering = Clustering::On;
+            h.accuracy.max_links = Some(40);
+        }),
+    );
+    let hit = hit(&r);
+    assert_eq!(hit.kind, Budget::Links);
+    assert!(hit.reached <= 40 && r.report.counts.links <= 40, "{hit:?}");
+    assert!(r.report.counts.cluster_links > 0);
+}
+
 /// The first budget to refuse a split is the one reported; the others
 /// still hold.
 #[test]
@@ -241,6 +289,9 @@ fn cli_refuses_bad_budgets() {
         ("--memory-budget", "0"),
         ("--memory-budget", "-1"),
         ("--memory-budget", "NaN"),
+        ("--time-budget", "0"),
+        ("--time-budget", "-2"),
+        ("--cluster-eps", "0"),
     ] {
         let arg = format!("{flag}={value}");
         let out = nusselt(&["solve", scene, "-q", &arg], dir.path());
