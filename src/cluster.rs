@@ -328,11 +328,8 @@ impl ClusterTree {
     /// A point of node `n` and the normal there, from a point `u` of the
     /// unit square: the patch by area, then a point in it.
     fn sample(&self, scene: &Scene, n: Node, u: DVec2) -> (DVec3, DVec3) {
-        let p = match n {
-            Node::Patch(p) => {
-                let patch = &scene.patches[p as usize];
-                return (point_in_polygon(patch.vertices(), u), patch.normal);
-            }
+        let (p, u) = match n {
+            Node::Patch(p) => (p, u),
             Node::Cluster(c) => {
                 let c = &self.clusters[c as usize];
                 let (lo, hi) = (c.first as usize, (c.first + c.count) as usize);
@@ -346,14 +343,11 @@ impl ClusterTree {
                 } else {
                     0.5
                 };
-                (self.order[lo + j], ux)
+                (self.order[lo + j], DVec2::new(ux, u.y))
             }
         };
-        let patch = &scene.patches[p.0 as usize];
-        (
-            point_in_polygon(patch.vertices(), DVec2::new(p.1, u.y)),
-            patch.normal,
-        )
+        let patch = &scene.patches[p as usize];
+        (point_in_polygon(patch.vertices(), u), patch.normal)
     }
 
     /// Checks the invariants of the module doc against `scene`; the first
@@ -659,6 +653,21 @@ impl Clusters {
         }
     }
 
+    /// The least and greatest distance between points of the bounding
+    /// spheres of `r` and `s` (the least is negative when they overlap).
+    fn distances(&self, r: Node, s: Node) -> (f64, f64) {
+        let t = &self.tree;
+        let gap = t.centre(r).distance(t.centre(s));
+        let reach = t.radius(r) + t.radius(s);
+        (gap - reach, gap + reach)
+    }
+
+    /// True when the bounding spheres of `r` and `s` are disjoint: a link
+    /// between them has a bounded kernel (1/r² ≤ 1/r_min²).
+    pub fn separated(&self, r: Node, s: Node) -> bool {
+        self.distances(r, s).0 > 0.0
+    }
+
     /// The oracle's error of a link (receiver `r`, source `s`) with
     /// visible fraction `v` (1 before it is known): the largest change of
     /// radiosity, ρ_r times irradiance, that treating the two as points
@@ -666,11 +675,7 @@ impl Clusters {
     /// touch.
     fn error(&self, scene: &Scene, elements: &[Element], r: Node, s: Node, v: f64) -> f64 {
         let t = &self.tree;
-        let gap = t.centre(r).distance(t.centre(s));
-        let (r_min, r_max) = (
-            gap - t.radius(r) - t.radius(s),
-            gap + t.radius(r) + t.radius(s),
-        );
+        let (r_min, r_max) = self.distances(r, s);
         if !(r_min > 0.0) {
             return f64::INFINITY;
         }
@@ -684,7 +689,10 @@ impl Clusters {
         if i == 0.0 {
             return 0.0;
         }
-        // The spread of 1/r² over the pair, and a shadow edge crossing it.
+        // The spread of 1/r² over the pair, and what a shadow edge or a
+        // member hidden from the source can change: min(V, 1 − V) of the
+        // nearest irradiance, at least 1/CLUSTER_RAYS of it (that many rays
+        // cannot rule a hidden member out).
         let near = rho * i / (r_min * r_min);
         rho * i * (1.0 / (r_min * r_min) - 1.0 / (r_max * r_max))
             + near * v.min(1.0 - v).max(1.0 / CLUSTER_RAYS as f64)
@@ -806,14 +814,14 @@ impl Clusters {
                 let (y, ny) = t.sample(scene, s, DVec2::new(b.y, b.x));
                 let d = y - x;
                 let (cx, cy) = (d.dot(nx), -d.dot(ny));
+                // (Coincident points face nothing.)
                 if !(cx > 0.0 && cy > 0.0) {
                     continue;
                 }
                 valid += 1;
                 if bvh.visible(x, y) {
                     seen += 1;
-                    let r2 = d.length_squared();
-                    kernel += cx * cy / (r2 * r2);
+                    kernel += cx * cy / d.length_squared().powi(2);
                 }
             }
             if valid > 0 {
@@ -837,7 +845,10 @@ impl Clusters {
         let link = ClusterLink {
             source: s,
             direction: dir.as_vec3().to_array(),
-            transfer: (area(r) * area(s) * mean / PI) as f32,
+            // A form factor is at most 1 either way: a link the budget
+            // keeps between touching nodes, whose 1/r² is unbounded, never
+            // carries more than its source radiates.
+            transfer: (area(r) * area(s) * mean / PI).min(area(r).min(area(s))) as f32,
             visibility: (f64::from(seen) / f64::from(valid)) as f32,
         };
         (Evaluation::Link(link), rays)

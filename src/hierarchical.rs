@@ -28,8 +28,10 @@
 //!   opening keeps its cluster link, the round loop stops, and
 //!   [`HierarchicalSolution::budget`] names the first budget that refused
 //!   one. Every `Hierarchy::split` call goes through `Solver::refuse_split`,
-//!   every opening through `Solver::refuse_links`. (Without clustering the
-//!   initial patch-to-patch links are not budgeted.)
+//!   every opening through `Solver::refuse_links`; a pair of touching
+//!   clusters ignores the time budget, and one the link or memory budget
+//!   refuses carries no light. (Without clustering the initial
+//!   patch-to-patch links are not budgeted.)
 //! - Cluster links count in the link total and the budgets; their
 //!   irradiance is added to the patch roots' before push-pull.
 //!
@@ -930,14 +932,10 @@ impl Solver<'_> {
                         None
                     }
                     Step::OpenReceiver | Step::OpenSource => {
-                        if self.refuse_links(1) {
-                            let (evaluation, rays) = clusters.evaluate(scene, bvh, r, s, seed);
-                            self.rays += rays;
-                            match evaluation {
-                                Evaluation::Link(link) => Some(link),
-                                _ => None,
-                            }
-                        } else {
+                        // Touching nodes must open to bound their error:
+                        // only the hard budgets (links, memory) stop them.
+                        let separated = clusters.separated(r, s);
+                        if !self.refuse_links(1, separated) {
                             let open = if step == Step::OpenReceiver { r } else { s };
                             let Node::Cluster(c) = open else {
                                 unreachable!("the oracle opens clusters only")
@@ -951,6 +949,19 @@ impl Solver<'_> {
                                 });
                             }
                             continue;
+                        }
+                        if separated {
+                            let (evaluation, rays) = clusters.evaluate(scene, bvh, r, s, seed);
+                            self.rays += rays;
+                            match evaluation {
+                                Evaluation::Link(link) => Some(link),
+                                _ => None,
+                            }
+                        } else {
+                            // Touching nodes as one link would be a guess
+                            // with an unbounded kernel: under the budget
+                            // their light is left out, never created.
+                            None
                         }
                     }
                 };
@@ -966,8 +977,9 @@ impl Solver<'_> {
     }
 
     /// True when `extra` more links would exceed the link or memory
-    /// budget (remembered as for a split).
-    fn refuse_links(&mut self, extra: u64) -> bool {
+    /// budget, or (when `timed`) the time budget is spent; the budget is
+    /// remembered as for a split.
+    fn refuse_links(&mut self, extra: u64, timed: bool) -> bool {
         let acc = &self.settings.accuracy;
         let links = self.n_links + extra;
         let hit = if acc.max_links.is_some_and(|max| links > max) {
@@ -975,7 +987,7 @@ impl Solver<'_> {
         } else if memory_estimate(self.hierarchy.len() as u64, links) > self.settings.memory_budget
         {
             Some(Budget::Memory)
-        } else if self.out_of_time() {
+        } else if timed && self.out_of_time() {
             Some(Budget::Time)
         } else {
             None

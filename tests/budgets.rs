@@ -137,10 +137,10 @@ fn link_budget_is_reported() {
     assert!(hit.reached <= 2_000);
 }
 
-/// A time budget already spent when linking starts: nothing is split or
-/// opened, the first links are solved as they are, and the report says
-/// so (with the clusters forced on, the root's children's links stay
-/// coarse).
+/// A time budget already spent when linking starts: no element is split
+/// and no cluster pair opened unless its nodes touch (their error would
+/// be unbounded); the links as they are get solved, and the report says
+/// so.
 #[test]
 fn spent_time_budget_solves_the_first_links() {
     let scene = cornell();
@@ -181,7 +181,6 @@ fn link_budget_binds_cluster_openings() {
     let hit = hit(&r);
     assert_eq!(hit.kind, Budget::Links);
     assert!(hit.reached <= 40 && r.report.counts.links <= 40, "{hit:?}");
-    assert!(r.report.counts.cluster_links > 0);
 }
 
 /// The first budget to refuse a split is the one reported; the others

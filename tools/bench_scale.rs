@@ -54,6 +54,9 @@ struct Args {
     /// Stop refining at this many seconds of solving (per scene).
     #[arg(long)]
     time_budget: Option<f64>,
+    /// The solver's memory budget, GiB.
+    #[arg(long, default_value_t = 2.0)]
+    memory_budget: f64,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -70,6 +73,7 @@ fn main() -> anyhow::Result<()> {
             Mode::Off => Clustering::Off,
         },
         time_budget: args.time_budget,
+        memory_budget: (args.memory_budget * (1u64 << 30) as f64) as u64,
         ..HierarchicalSettings::default()
     };
     println!(
