@@ -182,9 +182,10 @@ pub struct HierarchicalSettings {
     /// Whether links start from a cluster hierarchy above the patches
     /// ([`crate::cluster`]) or from every pair of patches.
     pub clustering: Clustering,
-    /// Seconds of linking and refinement after which no link is opened or
-    /// split: the links as they are then are solved. Results then depend
-    /// on the machine's speed (`None`: no limit).
+    /// Seconds of linking and refinement after which no element is split
+    /// and no cluster pair opened unless its clusters touch: the links as
+    /// they are then are solved. Results then depend on the machine's
+    /// speed (`None`: no limit).
     pub time_budget: Option<f64>,
     /// View importance [SAS92]: per patch, 1 where a view sees it directly
     /// (else 0). Refinement then weighs each receiver's link errors by the
