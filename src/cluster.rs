@@ -409,11 +409,11 @@ impl ClusterTree {
 
     /// Bytes held.
     pub fn memory_bytes(&self) -> usize {
-        self.clusters.capacity() * std::mem::size_of::<Cluster>()
-            + self.order.capacity() * 4
-            + self.cumulative_area.capacity() * 8
-            + self.patch_centre.capacity() * 24
-            + self.patch_radius.capacity() * 8
+        use std::mem::size_of;
+        self.clusters.capacity() * size_of::<Cluster>()
+            + self.order.capacity() * size_of::<u32>()
+            + (self.cumulative_area.capacity() + self.patch_radius.capacity()) * size_of::<f64>()
+            + self.patch_centre.capacity() * size_of::<DVec3>()
     }
 }
 

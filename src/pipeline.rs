@@ -204,19 +204,11 @@ fn solve_with_hierarchy(
     };
     report.times.discontinuities = secs(t);
 
-    let importance = settings
-        .importance
-        .then(|| view_importance(scene, &bvh, &view));
-    let with_importance;
-    let hs = if let Some(seen) = importance {
-        with_importance = HierarchicalSettings {
-            importance: Some(seen),
-            ..hs.clone()
-        };
-        &with_importance
-    } else {
-        hs
-    };
+    let mut hs = hs.clone();
+    if settings.importance {
+        hs.importance = Some(view_importance(scene, &bvh, &view));
+    }
+    let hs = &hs;
     let solution = solve_hierarchical_guided(scene, &bvh, hs, &guide, progress);
     if let Some(seen) = &hs.importance {
         let count = |f: &dyn Fn(usize) -> bool| (0..scene.patches.len()).filter(|&p| f(p)).count();
