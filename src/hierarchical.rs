@@ -52,8 +52,8 @@ use crate::discontinuity::Segment;
 use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchy::{ElementId, Hierarchy, split_corners};
 use crate::links::{
-    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, shadow_error,
-    sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
+    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, rays_needed,
+    shadow_error, sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
@@ -370,6 +370,9 @@ pub struct Round {
     pub split_links: u64,
     /// Leaves split for their radiosity gradient.
     pub gradient_splits: u64,
+    /// Links sampled again with more visibility rays because their source
+    /// got brighter ([`crate::links::rays_needed`]).
+    pub resampled_links: u64,
     pub elements: usize,
     pub leaves: usize,
     pub links: u64,
@@ -518,6 +521,8 @@ struct Solver<'a> {
     rays: u64,
     /// The first budget that refused a split.
     budget: Option<Budget>,
+    /// Links resampled with more rays so far.
+    resampled: u64,
     /// Elements `..measured` have their exposure measured (the arena only
     /// grows).
     measured: usize,
@@ -655,6 +660,12 @@ impl Solver<'_> {
     ) -> bool {
         let target = match decision {
             Decision::Accept => return false,
+            Decision::Resample => {
+                // The same pair again, with the rays it now needs.
+                next.push(Pair::refining(r, link.source, false));
+                self.resampled += 1;
+                return true;
+            }
             Decision::SplitReceiver => r,
             Decision::SplitSource => link.source,
         };
@@ -782,7 +793,6 @@ impl Solver<'_> {
     fn settle_links(&mut self, mut pending: Vec<Pair>) -> u64 {
         let mut splits = 0;
         while !pending.is_empty() {
-            let rays = self.settings.visibility_rays;
             let seed = self.settings.seed;
             let (scene, bvh, elements) = (self.scene, self.bvh, &self.hierarchy.elements);
             let t = &self.thresholds;
@@ -794,9 +804,16 @@ impl Solver<'_> {
                     let (re, se) = (&elements[r.index()], &elements[s.index()]);
                     let rho = weighted_rho(scene, &self.weight, re.patch);
                     let state = self.hierarchy.source_state(s);
-                    let skip = |l: &Link| split_at_any_visibility(t, l, re, se, &state, rho);
+                    let plan = |l: &Link| {
+                        let n = rays_needed(t, l, re, se, &state, rho);
+                        if split_at_any_visibility(t, l, re, se, &state, rho, n) {
+                            0
+                        } else {
+                            n
+                        }
+                    };
                     let (mut link, cast) =
-                        evaluate_link(scene, elements, r, s, bvh, rays, seed, p.whole, skip);
+                        evaluate_link(scene, elements, r, s, bvh, seed, p.whole, plan);
                     let d = decide(t, &link, re, se, &state, rho);
                     if d == Decision::Accept {
                         sharpen(scene, t, &mut link, re, se, &state);
@@ -809,35 +826,43 @@ impl Solver<'_> {
                 let r = p.receiver;
                 self.rays += cast;
                 if self.apply(r, link, decision, &mut next) {
-                    splits += 1;
+                    splits += u64::from(decision != Decision::Resample);
                     continue;
                 }
                 let mut link = link;
                 if decision != Decision::Accept && cast == 0 {
                     // The budget refused a split the oracle decided without
                     // visibility rays: the kept link needs its visibility.
-                    let (l, c) = evaluate_link(
-                        self.scene,
-                        &self.hierarchy.elements,
-                        r,
-                        link.source,
-                        self.bvh,
-                        rays,
-                        seed,
-                        p.whole,
-                        |_| false,
-                    );
-                    link = l;
                     let (h, source) = (&self.hierarchy, link.source);
                     let state = h.source_state(source);
                     let t = &self.thresholds;
+                    let (re, se) = (h.get(r), h.get(source));
+                    let rho = weighted_rho(self.scene, &self.weight, re.patch);
+                    let plan = |l: &Link| rays_needed(t, l, re, se, &state, rho);
+                    let (l, c) = evaluate_link(
+                        self.scene,
+                        &h.elements,
+                        r,
+                        source,
+                        self.bvh,
+                        seed,
+                        p.whole,
+                        plan,
+                    );
+                    link = l;
                     sharpen(self.scene, t, &mut link, h.get(r), h.get(source), &state);
                     self.rays += c;
                 }
-                if link.coupling() > 0.0 {
+                // Fully occluded or facing away: no light, no link. A link
+                // that only a few rays found occluded stays (carrying
+                // nothing) until the solve ends: should its source brighten,
+                // it is resampled like the others. Dropping it now would
+                // bias the resampled links' light low (only those that
+                // saw something would get a second look).
+                let few_rays = link.rays() > 0 && link.rays() < self.thresholds.max_rays();
+                if link.coupling() > 0.0 || (few_rays && link.form_factor > 0.0) {
                     self.links[r.index()].push(link);
                 } else {
-                    // Fully occluded or facing away: no light, no link.
                     self.n_links -= 1;
                 }
             }
@@ -1070,7 +1095,7 @@ impl Solver<'_> {
             for (l, d) in old.into_iter().zip(ds) {
                 if !self.apply(ElementId(r as u32), l, *d, &mut next) {
                     self.links[r].push(l);
-                } else {
+                } else if *d != Decision::Resample {
                     splits += 1;
                 }
             }
@@ -1115,7 +1140,7 @@ impl Solver<'_> {
             let own = std::mem::take(&mut self.links[k.index()]);
             let (down, keep): (Vec<Link>, Vec<Link>) = own.into_iter().partition(|l| {
                 let b = (rho * self.hierarchy.get(l.source).exposed_radiosity).max_element();
-                let v_err = visibility_error(&self.thresholds, l);
+                let v_err = visibility_error(l);
                 b * (l.error as f64 + v_err * l.form_factor as f64) > 0.25 * tol
             });
             self.links[k.index()] = keep;
@@ -1344,6 +1369,7 @@ pub fn solve_hierarchical_guided(
         links: vec![Vec::new(); scene.patches.len()],
         n_links: 0,
         rays: 0,
+        resampled: 0,
         budget: None,
         measured: 0,
         clusters: None,
@@ -1378,6 +1404,7 @@ pub fn solve_hierarchical_guided(
     let mut rounds_exhausted = false;
     let mut split_links = first_splits + guided_splits;
     let mut gradient_splits = 0;
+    let mut resampled_links = std::mem::take(&mut solver.resampled);
     let mut round_start = Instant::now();
     let max_rounds = acc.max_rounds.max(1);
     for round in 0..max_rounds {
@@ -1391,6 +1418,7 @@ pub fn solve_hierarchical_guided(
             round,
             split_links,
             gradient_splits,
+            resampled_links,
             elements: solver.hierarchy.len(),
             leaves: solver.hierarchy.leaf_count(),
             links: solver.n_links,
@@ -1411,14 +1439,19 @@ pub fn solve_hierarchical_guided(
         solver.update_importance();
         split_links = solver.refine();
         gradient_splits = solver.refine_gradients(acc.gradient_tol * exitance);
+        resampled_links = std::mem::take(&mut solver.resampled);
         times.refinement += t.elapsed().as_secs_f64();
-        if split_links == 0 && gradient_splits == 0 {
+        if split_links == 0 && gradient_splits == 0 && resampled_links == 0 {
             break;
         }
     }
-    // Links to fully occluded children were never kept; release spare
+    // Links to fully occluded children were never kept, except those
+    // waiting for a possible resample: drop them, and release spare
     // capacity so the memory figure is what the solution holds.
     for l in &mut solver.links {
+        let before = l.len();
+        l.retain(|l| l.coupling() > 0.0);
+        solver.n_links -= (before - l.len()) as u64;
         l.shrink_to_fit();
     }
     solver.hierarchy.elements.shrink_to_fit();

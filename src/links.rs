@@ -18,13 +18,20 @@
 //! inner integral, which is zero behind the source's plane), replaced by
 //! an adaptive quadrature when the points disagree by more than 10 %
 //! ([`sharpen`]); F_err = max − min of the point values at those centroids
-//! and at the receiver's corners. A source smaller than its receiver is
-//! also sampled at its own points (reciprocity): when that gives half as
-//! much again, the quadrature over the smaller element decides. Quadratures always run
-//! over the smaller element.
+//! and at the receiver's corners (for elements far apart, where F is near
+//! linear over the receiver, twice the centroids' range instead). A source
+//! smaller than its receiver is also sampled at its own points
+//! (reciprocity): when that gives half as much again, the quadrature over
+//! the smaller element decides. Quadratures always run over the smaller
+//! element.
+//!
 //! Visibility: the kernel-weighted unoccluded fraction of N rays between
 //! stratified points of the two elements, and its spread over the
-//! receiver's quarters (a shadow edge crossing it).
+//! receiver's quarters (a shadow edge crossing it). N is [`FEW_RAYS`] for
+//! a link the oracle accepts whatever its visibility, else the maximum
+//! ([`rays_needed`]); a link records its N, and one whose source has
+//! brightened past what its N allows is resampled
+//! ([`Decision::Resample`]).
 
 use glam::DVec3;
 
@@ -45,30 +52,40 @@ pub struct Link {
     /// Visible fraction in [0, 1], fixed point (0 and 1 exact).
     visibility: u16,
     /// Spread of the visible fraction over the receiver's four quarters
-    /// (max − min), fixed point: how much a shadow edge crossing the
-    /// receiver varies this link's light over it.
-    spread: u16,
+    /// (max − min), fixed point rounded up: how much a shadow edge crossing
+    /// the receiver varies this link's light over it.
+    spread: u8,
+    /// Visibility rays per receiver quarter the estimate stands for (0: no
+    /// visibility was sampled).
+    quarter_rays: u8,
 }
 
 fn to_fixed(x: f64) -> u16 {
     (x.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16
 }
 
+/// Most rays per receiver quarter a link records ([`Link::rays`]).
+pub const MAX_QUARTER_RAYS: usize = u8::MAX as usize;
+
 impl Link {
-    /// A link with the given values, each clamped to [0, 1] (errors to ≥ 0).
+    /// A link with the given values, each clamped to [0, 1] (errors to ≥ 0);
+    /// `rays` is the number of visibility rays its visibility stands for
+    /// (rounded up to a multiple of 4, at most 4 × [`MAX_QUARTER_RAYS`]).
     pub fn new(
         source: ElementId,
         form_factor: f64,
         error: f64,
         visibility: f64,
         spread: f64,
+        rays: usize,
     ) -> Link {
         Link {
             source,
             form_factor: form_factor.clamp(0.0, 1.0) as f32,
             error: error.max(0.0) as f32,
             visibility: to_fixed(visibility),
-            spread: to_fixed(spread),
+            spread: (spread.clamp(0.0, 1.0) * f64::from(u8::MAX)).ceil() as u8,
+            quarter_rays: rays.div_ceil(4).min(MAX_QUARTER_RAYS) as u8,
         }
     }
 
@@ -79,7 +96,12 @@ impl Link {
 
     /// Spread of V over the receiver's quarters, in [0, 1].
     pub fn spread(&self) -> f64 {
-        f64::from(self.spread) / f64::from(u16::MAX)
+        f64::from(self.spread) / f64::from(u8::MAX)
+    }
+
+    /// Visibility rays the link's V stands for.
+    pub fn rays(&self) -> usize {
+        4 * self.quarter_rays as usize
     }
 
     /// True when some but not all visibility rays were blocked.
@@ -153,18 +175,19 @@ pub fn weighted_visibility(
 }
 
 /// Evaluates the link (receiver `r_id`, source `s_id`): its form factor
-/// and error, then its visibility, unless `skip_visibility` says the
-/// unoccluded link already decides (its visibility stays 0). Visibility
-/// rays: `rays` rounded up to a multiple of 4, a quarter of them from each
-/// of the receiver's four quarters (its virtual children, at the same
-/// relative points) to the same stratified source points (so quarters
-/// differ only by where they are: the spread measures a shadow edge, not
-/// sampling noise), each ray weighted by the
-/// kernel cos θ_x cos θ_y / r², so that both the kernel-weighted visible
-/// fraction and its spread over the receiver are known. When `parent_whole`
-/// says the link this one refines saw its source whole, one ray per
-/// quarter probes first, and the link is wholly visible when none is
-/// blocked ([`sample_visibility`]). Returns the link and the rays cast.
+/// and error, then its visibility with the number of rays `plan` asks for
+/// given the unoccluded link (0: none, when the unoccluded link already
+/// decides; its visibility stays 0). Visibility rays: the plan rounded up
+/// to a multiple of 4, a quarter of them from each of the receiver's four
+/// quarters (its virtual children, at the same relative points) to the
+/// same stratified source points (so quarters differ only by where they
+/// are: the spread measures a shadow edge, not sampling noise), each ray
+/// weighted by the kernel cos θ_x cos θ_y / r², so that both the
+/// kernel-weighted visible fraction and its spread over the receiver are
+/// known. When `parent_whole` says the link this one refines saw its
+/// source whole, one ray per quarter probes first, and the link is wholly
+/// visible when none is blocked ([`sample_visibility`]). Returns the link
+/// and the rays cast.
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_link(
     scene: &Scene,
@@ -172,10 +195,9 @@ pub fn evaluate_link(
     r_id: ElementId,
     s_id: ElementId,
     bvh: &TriangleBvh,
-    rays: usize,
     seed: u64,
     parent_whole: bool,
-    skip_visibility: impl Fn(&Link) -> bool,
+    plan: impl Fn(&Link) -> usize,
 ) -> (Link, u64) {
     let r = &elements[r_id.index()];
     let s = &elements[s_id.index()];
@@ -201,11 +223,16 @@ pub fn evaluate_link(
     }
     // The extremes of F over the receiver are often at its corners (next
     // to a shared edge F → 0 for far parts of the source): include them in
-    // the spread.
-    for x in r.vertices() {
-        let v = point_ff(*x);
-        lo = lo.min(v);
-        hi = hi.max(v);
+    // the spread. Far apart, F is near linear over the receiver and its
+    // range at the corners is twice that at the quarter centroids.
+    if far_apart(r, n_r, s, n_s) {
+        hi = lo + 2.0 * (hi - lo);
+    } else {
+        for x in r.vertices() {
+            let v = point_ff(*x);
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
     }
     // Every quarter centroid behind the source's plane while a corner sees
     // it: the midpoint rule says 0 for a pair that does exchange light (a
@@ -237,14 +264,37 @@ pub fn evaluate_link(
             f = exact;
         }
     }
-    let mut link = Link::new(s_id, f, spread, 0.0, 0.0);
-    if !(f > 0.0) || skip_visibility(&link) {
+    let link = Link::new(s_id, f, spread, 0.0, 0.0, 0);
+    let rays = if f > 0.0 { plan(&link) } else { 0 };
+    if rays == 0 {
         return (link, 0);
     }
+    let rays = rays.min(4 * MAX_QUARTER_RAYS);
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
     let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, parent_whole, &mut rng);
-    link = Link::new(s_id, f, link.error as f64, v, v_spread);
-    (link, cast)
+    (Link::new(s_id, f, spread, v, v_spread, rays), cast)
+}
+
+/// Centres at least this many times the sum of the two elements' radii
+/// apart count as far ([`far_apart`]).
+const FAR_FIELD: f64 = 4.0;
+
+/// True when elements `r` and `s` are far apart for the form factor: their
+/// centres at least [`FAR_FIELD`] times the sum of their radii apart, and
+/// each wholly in front of the other's plane (no clipping).
+fn far_apart(r: &Element, n_r: DVec3, s: &Element, n_s: DVec3) -> bool {
+    let radius = |e: &Element, c: DVec3| {
+        e.vertices()
+            .iter()
+            .map(|p| (*p - c).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt()
+    };
+    let (c_r, c_s) = (r.centroid(), s.centroid());
+    let (rad_r, rad_s) = (radius(r, c_r), radius(s, c_s));
+    (c_s - c_r).length() >= FAR_FIELD * (rad_r + rad_s)
+        && (c_r - c_s).dot(n_s) > rad_r
+        && (c_s - c_r).dot(n_r) > rad_s
 }
 
 /// The kernel-weighted visible fraction of `s` from `r` and its spread
@@ -252,9 +302,10 @@ pub fn evaluate_link(
 ///
 /// With `probe`, one ray per quarter goes first, from strata spread over
 /// the sample pattern; when none is blocked the pair is taken as wholly
-/// visible. Used for the children of a wholly visible link, whose ray pairs
-/// are a subset of the pairs its parent's rays sampled: a probe that finds
-/// a blocker falls back to the full set.
+/// visible, its V standing for all `rays`. Used for the children of a
+/// wholly visible link, whose ray pairs are a subset of the pairs its
+/// parent's rays sampled: a probe that finds a blocker falls back to the
+/// full set. With one ray per quarter the probe is the full set.
 fn sample_visibility(
     scene: &Scene,
     r: &Element,
@@ -279,7 +330,7 @@ fn sample_visibility(
     let quarters = split_corners(r.shape, &r.corners);
     let n = r.vertices().len();
     let mut probed = 0;
-    if probe {
+    if probe && per_quarter > 1 {
         let clear = quarters.iter().enumerate().all(|(k, quarter)| {
             let j = k * per_quarter / 4;
             let x = point_in_polygon(&quarter[..n], from[j]);
@@ -394,6 +445,9 @@ pub enum Decision {
     SplitReceiver,
     /// Replace the link by links to the source's children.
     SplitSource,
+    /// Keep the pair but sample its visibility again with the rays
+    /// [`rays_needed`] asks for (its source got brighter since).
+    Resample,
 }
 
 /// The refinement oracles.
@@ -435,16 +489,25 @@ pub struct Thresholds {
     pub cluster_eps: f64,
     /// Elements at or below this area (m²) are never split.
     pub min_area: f64,
-    /// Visibility rays per link (V_err = 1/rays for an unoccluded link).
+    /// Visibility rays per link at most (V_err = 1/rays for an unoccluded
+    /// link); see [`rays_needed`].
     pub rays: usize,
+}
+
+impl Thresholds {
+    /// The most visibility rays a link gets: `rays` rounded up to a
+    /// multiple of 4, at most 4 × [`MAX_QUARTER_RAYS`].
+    pub fn max_rays(&self) -> usize {
+        4 * self.rays.max(1).div_ceil(4).min(MAX_QUARTER_RAYS)
+    }
 }
 
 /// Uncertainty of a link's visibility as seen over its receiver: the
 /// spread of V over the receiver's quarters (a shadow edge crossing it),
 /// plus the sampling error of V (√(V(1−V)/N) when partly visible, 1/N when
 /// all N rays agree).
-pub fn visibility_error(t: &Thresholds, link: &Link) -> f64 {
-    let n = t.rays.max(1) as f64;
+pub fn visibility_error(link: &Link) -> f64 {
+    let n = link.rays().max(1) as f64;
     let v = link.visibility();
     let sampling = if link.partly_visible() {
         (v * (1.0 - v) / n).sqrt()
@@ -474,6 +537,44 @@ fn source_error(link: &Link, receiver_reflectance: DVec3, source: &SourceState) 
         * (receiver_reflectance * source.unevenness).max_element()
 }
 
+/// Visibility rays for a link whose acceptance does not hang on its
+/// visibility ([`rays_needed`]): one per receiver quarter.
+pub const FEW_RAYS: usize = 4;
+
+/// The visibility rays `link` (receiver `receiver`, source `source`)
+/// needs: [`FEW_RAYS`] when the oracle accepts it whatever its visibility
+/// turns out to be (wholly visible with a shadow edge across the receiver
+/// and the sampling error of that few rays), else `t.max_rays()`.
+///
+/// A cheap link's estimate then only has to be unbiased, which a few rays
+/// are; a decision that does hang on V is made on the full estimate.
+/// Deciding on a noisy V would select on the noise: links whose few rays
+/// happened to miss a partial shadow would be kept, the others split, and
+/// light would be lost or gained on average. Only the brightness oracle
+/// weighs visibility error; the others always take the maximum.
+pub fn rays_needed(
+    t: &Thresholds,
+    link: &Link,
+    receiver: &Element,
+    source: &Element,
+    state: &SourceState,
+    receiver_reflectance: DVec3,
+) -> usize {
+    let most = t.max_rays();
+    if t.oracle != Oracle::Bf || most <= FEW_RAYS {
+        return most;
+    }
+    let (f, f_err) = (link.form_factor as f64, link.error as f64);
+    let worst = Link::new(link.source, f, f_err, 1.0, 1.0, FEW_RAYS);
+    let (error, eps) = link_error(t, &worst, receiver.area, receiver_reflectance, state);
+    let minimal = !(receiver.area > t.min_area) && !(source.area > t.min_area);
+    if error <= eps || minimal {
+        FEW_RAYS
+    } else {
+        most
+    }
+}
+
 /// The oracle's error measure for a link (in the unit of its threshold) and
 /// the threshold.
 pub fn link_error(
@@ -490,7 +591,7 @@ pub fn link_error(
         Oracle::Ff => (f, t.ff_eps),
         Oracle::Bf => {
             let f_err = link.error as f64;
-            let v_err = visibility_error(t, link);
+            let v_err = visibility_error(link);
             let uneven = source_error(link, receiver_reflectance, source);
             (rho_b * (v * f_err + v_err * (f + f_err)) + uneven, t.bf_eps)
         }
@@ -547,10 +648,11 @@ pub fn shadow_error(
     }
 }
 
-/// True when `link`, whatever its visibility, will be split: the oracles'
-/// errors are smallest for a fully occluded link (V = 0: no spread, the
-/// smallest sampling error), so when even that is rejected, the link needs
-/// no visibility rays ([`decide`] at V = 0 is then the decision at any V).
+/// True when `link`, whatever its visibility by `rays` rays, will be split:
+/// the oracles' errors are smallest for a fully occluded link (V = 0: no
+/// spread, the smallest sampling error), so when even that is rejected,
+/// the link needs no visibility rays ([`decide`] at V = 0 is then the
+/// decision at any V).
 pub fn split_at_any_visibility(
     t: &Thresholds,
     link: &Link,
@@ -558,15 +660,14 @@ pub fn split_at_any_visibility(
     source: &Element,
     state: &SourceState,
     receiver_reflectance: DVec3,
+    rays: usize,
 ) -> bool {
-    let occluded = Link::new(
-        link.source,
-        link.form_factor as f64,
-        link.error as f64,
-        0.0,
-        0.0,
-    );
-    decide(t, &occluded, receiver, source, state, receiver_reflectance) != Decision::Accept
+    let (f, f_err) = (link.form_factor as f64, link.error as f64);
+    let occluded = Link::new(link.source, f, f_err, 0.0, 0.0, rays);
+    matches!(
+        decide(t, &occluded, receiver, source, state, receiver_reflectance),
+        Decision::SplitReceiver | Decision::SplitSource
+    )
 }
 
 /// The decision for a link: accept it when its error is within the
@@ -576,7 +677,9 @@ pub fn split_at_any_visibility(
 /// does, link to its children; else split the larger of the two elements
 /// (by area). An element at the minimum area is not split: the
 /// other one is, and the link is accepted when both are minimal. Zero
-/// links are always accepted.
+/// links are always accepted. Before any of this, a link whose visibility
+/// stands for fewer rays than [`rays_needed`] now asks is resampled (one
+/// with no visibility sampled is decided at V = 0 by one ray: a split).
 pub fn decide(
     t: &Thresholds,
     link: &Link,
@@ -587,6 +690,10 @@ pub fn decide(
 ) -> Decision {
     if !(link.form_factor > 0.0) {
         return Decision::Accept;
+    }
+    let rays = link.rays();
+    if rays > 0 && rays < rays_needed(t, link, receiver, source, state, receiver_reflectance) {
+        return Decision::Resample;
     }
     let (error, eps) = link_error(t, link, receiver.area, receiver_reflectance, state);
     if !(error > eps) {
@@ -637,7 +744,7 @@ mod tests {
             rays: 16,
         };
         let err = |v: f64, spread: f64| {
-            let l = Link::new(ElementId(0), 0.1, 0.0, v, spread);
+            let l = Link::new(ElementId(0), 0.1, 0.0, v, spread, 16);
             let source = SourceState {
                 radiosity: DVec3::splat(10.0),
                 unevenness: DVec3::ZERO,

@@ -25,16 +25,22 @@ pub fn pair_stream(seed: u64, a: u32, b: u32) -> Pcg64Mcg {
     stream(seed, (u64::from(a) << 32) | u64::from(b))
 }
 
-/// `n` stratified points in the unit square: a ⌈√n⌉ × ⌈√n⌉ jittered grid,
-/// of which the first `n` cells (row by row) are used.
+/// `n` stratified points in the unit square: one jittered point per cell
+/// of an a × b grid with a · b = n and a the largest divisor of n not above
+/// √n, so that every cell is used and the points are uniform over the
+/// square (a prime n gives one row of n cells).
 pub fn stratified(n: usize, rng: &mut impl Rng) -> Vec<DVec2> {
-    let side = (n as f64).sqrt().ceil().max(1.0) as usize;
+    let rows = (1..=n.isqrt().max(1))
+        .rev()
+        .find(|a| n % a == 0)
+        .unwrap_or(1);
+    let columns = n.div_ceil(rows).max(1);
     (0..n)
         .map(|k| {
-            let (i, j) = (k % side, k / side);
+            let (i, j) = (k % columns, k / columns);
             DVec2::new(
-                (i as f64 + rng.random::<f64>()) / side as f64,
-                (j as f64 + rng.random::<f64>()) / side as f64,
+                (i as f64 + rng.random::<f64>()) / columns as f64,
+                (j as f64 + rng.random::<f64>()) / rows as f64,
             )
         })
         .collect()
@@ -111,5 +117,22 @@ mod tests {
             / 1e4;
         let centroid = crate::scene::polygon_centroid(&quad);
         assert!((mean - centroid).length() < 0.01, "{mean} vs {centroid}");
+    }
+
+    #[test]
+    fn stratified_counts_that_are_not_squares_cover_the_square() {
+        // 8 points: a 2 × 4 grid, so each quarter of the square gets two
+        // (a 3 × 3 grid cut at 8 cells would leave a corner empty).
+        let mut rng = stream(5, 1);
+        for _ in 0..50 {
+            let pts = stratified(8, &mut rng);
+            for (qx, qy) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                let inside = pts
+                    .iter()
+                    .filter(|p| (p.x >= 0.5) == (qx == 1) && (p.y >= 0.5) == (qy == 1))
+                    .count();
+                assert_eq!(inside, 2, "{pts:?}");
+            }
+        }
     }
 }

@@ -568,13 +568,15 @@ fn mesh_modes_at_equal_vertex_count() {
         MeshMode::Uniform,
         Some(n_d),
     );
-    // Measured: quadtree 3,674 vertices, RMSE 0.020, max 0.27;
-    // discontinuity 1,483, 0.019, 0.11; uniform 1,653, 0.013, 0.18. With
+    // Measured: quadtree 3,807 vertices, RMSE 0.013, max 0.134;
+    // discontinuity 1,509, 0.018, 0.126; uniform 1,584, 0.013, 0.144. With
     // every vertex evaluated at its point, a regular grid fits this soft
     // penumbra well in the mean; the discontinuity mesh wins in the worst
-    // case (the penumbra's edges), and beats the quadtree on both with 40 %
-    // of its vertices.
+    // case (the penumbra's edges) with 40 % of the quadtree's vertices.
+    // (Before the quadtree's links got uniformly stratified rays it
+    // measured 0.020 and 0.27, and lost on both.)
     assert!(n_d < n_q && n_u >= n_d);
-    assert!(rms_d < rms_q && max_d < max_q, "discontinuity vs quadtree");
+    assert!(max_d < max_q, "discontinuity vs quadtree, worst case");
+    assert!(rms_d < 1.5 * rms_q, "discontinuity vs quadtree, mean");
     assert!(max_d < max_u, "discontinuity vs uniform, worst case");
 }
