@@ -749,6 +749,11 @@ impl Clusters {
             Evaluation::Link(l) if self.error(scene, elements, r, s, l.visibility as f64) > eps => {
                 (open, rays)
             }
+            Evaluation::Link(l) if self.error(scene, elements, r, s, 0.5) <= eps => {
+                // Accepted whatever the visibility: the decision did not
+                // hang on these rays, so their estimate is kept.
+                (Step::Accept(l), rays)
+            }
             Evaluation::Link(_) => {
                 // The kept value comes from fresh rays: the ones that
                 // decided would favour links whose sample saw no shadow.
