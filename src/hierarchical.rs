@@ -57,7 +57,7 @@ use crate::links::{
 };
 use crate::mesh::OutputMesh;
 use crate::progress::Progress;
-use crate::sampling::{pair_stream, point_in_polygon, stratified};
+use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::{Scene, Shape, polygon_centroid};
 use crate::visibility::TriangleBvh;
 
@@ -1574,9 +1574,10 @@ pub fn point_radiosity(
     // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
     let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
         let mut rng = pair_stream(seed, leaf.0, stream);
+        let sampler = PolygonSampler::new(polygon);
         let targets = stratified(n, &mut rng)
             .into_iter()
-            .map(|t| (x, point_in_polygon(polygon, t)));
+            .map(|t| (x, sampler.point(t)));
         let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
         (total > 0.0).then(|| seen / total)
     };

@@ -37,7 +37,7 @@ use glam::DVec3;
 
 use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_checked};
 use crate::hierarchy::{Element, ElementId, split_corners};
-use crate::sampling::{pair_stream, point_in_polygon, stratified};
+use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
 use crate::visibility::TriangleBvh;
 
@@ -323,10 +323,8 @@ fn sample_visibility(
     let mut to = stratified(per_quarter, rng);
     use rand::seq::SliceRandom;
     to.shuffle(rng);
-    let targets: Vec<DVec3> = to
-        .iter()
-        .map(|b| point_in_polygon(s.vertices(), *b))
-        .collect();
+    let source = PolygonSampler::new(s.vertices());
+    let targets: Vec<DVec3> = to.iter().map(|b| source.point(*b)).collect();
     let quarters = split_corners(r.shape, &r.corners);
     let n = r.vertices().len();
     let mut probed = 0;
@@ -345,7 +343,8 @@ fn sample_visibility(
     // Per quarter, the kernel-weighted visibility sums: V (their ratio
     // over all quarters) is what scales the unoccluded form factor.
     let sums = quarters.map(|quarter| {
-        let from = from.iter().map(|a| point_in_polygon(&quarter[..n], *a));
+        let sampler = PolygonSampler::new(&quarter[..n]);
+        let from = from.iter().map(|a| sampler.point(*a));
         weighted_visibility(bvh, from.zip(targets.iter().copied()), n_r, n_s)
     });
     let (weight, seen) = (sums.map(|q| q.0), sums.map(|q| q.1));

@@ -47,41 +47,78 @@ pub fn stratified(n: usize, rng: &mut impl Rng) -> Vec<DVec2> {
 }
 
 /// Maps a point of the unit square to a point of a convex planar polygon,
-/// uniformly by area: `s.x` picks a fan triangle by cumulative area and is
-/// rescaled, then the square-root mapping places the point in the triangle.
+/// uniformly by area (see [`PolygonSampler`], which prepares a polygon
+/// once for many points).
 pub fn point_in_polygon(polygon: &[DVec3], s: DVec2) -> DVec3 {
-    let p0 = polygon[0];
-    // Element polygons are small: their fan areas stay on the stack.
-    let fan = polygon.len() - 2;
-    let mut small = [0.0; 8];
-    let mut large = Vec::new();
-    let areas: &mut [f64] = if fan <= small.len() {
-        &mut small[..fan]
-    } else {
-        large.resize(fan, 0.0);
-        &mut large
-    };
-    for (i, a) in areas.iter_mut().enumerate() {
-        *a = (polygon[i + 1] - p0).cross(polygon[i + 2] - p0).length();
-    }
-    let total: f64 = areas.iter().sum();
-    let mut x = s.x * total;
-    let mut tri = areas.len() - 1;
-    for (i, &a) in areas.iter().enumerate() {
-        if x < a || i == areas.len() - 1 {
-            tri = i;
-            x = if a > 0.0 {
-                (x / a).clamp(0.0, 1.0)
-            } else {
-                0.5
-            };
-            break;
+    PolygonSampler::new(polygon).point(s)
+}
+
+/// A convex planar polygon prepared for uniform sampling: `s.x` picks a
+/// fan triangle by cumulative area and is rescaled, then the square-root
+/// mapping places the point in the triangle. The fan areas are computed
+/// once (on the stack for up to 10 vertices).
+pub struct PolygonSampler<'a> {
+    polygon: &'a [DVec3],
+    small: [f64; 8],
+    large: Vec<f64>,
+    total: f64,
+}
+
+impl<'a> PolygonSampler<'a> {
+    pub fn new(polygon: &'a [DVec3]) -> PolygonSampler<'a> {
+        let p0 = polygon[0];
+        let fan = polygon.len() - 2;
+        let area = |i: usize| (polygon[i + 1] - p0).cross(polygon[i + 2] - p0).length();
+        let mut small = [0.0; 8];
+        let mut large = Vec::new();
+        if fan <= small.len() {
+            for (i, a) in small[..fan].iter_mut().enumerate() {
+                *a = area(i);
+            }
+        } else {
+            large = (0..fan).map(area).collect();
         }
-        x -= a;
+        let mut sampler = PolygonSampler {
+            polygon,
+            small,
+            large,
+            total: 0.0,
+        };
+        sampler.total = sampler.areas().iter().sum();
+        sampler
     }
-    let (a, b, c) = (p0, polygon[tri + 1], polygon[tri + 2]);
-    let r = x.sqrt();
-    a + r * (1.0 - s.y) * (b - a) + r * s.y * (c - a)
+
+    fn areas(&self) -> &[f64] {
+        let fan = self.polygon.len() - 2;
+        if fan <= self.small.len() {
+            &self.small[..fan]
+        } else {
+            &self.large
+        }
+    }
+
+    /// The point of the polygon that `s` (in the unit square) maps to.
+    pub fn point(&self, s: DVec2) -> DVec3 {
+        let areas = self.areas();
+        let mut x = s.x * self.total;
+        let mut tri = areas.len() - 1;
+        for (i, &a) in areas.iter().enumerate() {
+            if x < a || i == areas.len() - 1 {
+                tri = i;
+                x = if a > 0.0 {
+                    (x / a).clamp(0.0, 1.0)
+                } else {
+                    0.5
+                };
+                break;
+            }
+            x -= a;
+        }
+        let p = self.polygon;
+        let (a, b, c) = (p[0], p[tri + 1], p[tri + 2]);
+        let r = x.sqrt();
+        a + r * (1.0 - s.y) * (b - a) + r * s.y * (c - a)
+    }
 }
 
 #[cfg(test)]
