@@ -446,33 +446,16 @@ fn visibility_rays_follow_what_the_decision_needs() {
         unevenness: DVec3::ZERO,
     };
     let (dim, bright) = (state(1e-6), state(1e3));
-    let plan = |s: &SourceState| {
+    let evaluate = |s: &SourceState| {
         let s = *s;
-        move |l: &nusselt::links::Link| rays_needed(&t, l, re, se, &s, rho)
+        let plan = move |l: &nusselt::links::Link| rays_needed(&t, l, re, se, &s, rho);
+        evaluate_link(&scene, &h.elements, floor, source, &bvh, 0, false, plan)
     };
-    let (cheap, cast) = evaluate_link(
-        &scene,
-        &h.elements,
-        floor,
-        source,
-        &bvh,
-        0,
-        false,
-        plan(&dim),
-    );
+    let (cheap, cast) = evaluate(&dim);
     assert_eq!((cheap.rays(), cast), (FEW_RAYS, FEW_RAYS as u64));
     assert!(cheap.form_factor > 0.0);
     assert_eq!(decide(&t, &cheap, re, se, &dim, rho), Decision::Accept);
-    let (full, cast) = evaluate_link(
-        &scene,
-        &h.elements,
-        floor,
-        source,
-        &bvh,
-        0,
-        false,
-        plan(&bright),
-    );
+    let (full, cast) = evaluate(&bright);
     assert_eq!((full.rays(), cast), (32, 32));
     // The cheap link, now that its source is bright: resampled first.
     assert_eq!(decide(&t, &cheap, re, se, &bright, rho), Decision::Resample);
