@@ -458,6 +458,17 @@ pub enum Evaluation {
     Unrepresentable,
 }
 
+/// What [`Clusters::sample`] found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Sampled {
+    /// No pair of points faced each other.
+    Nothing,
+    /// A ray got through.
+    Seen,
+    /// Every ray was blocked.
+    Blocked,
+}
+
 /// What the oracle decided for a (receiver, source) pair.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Step {
@@ -669,10 +680,10 @@ impl Clusters {
     }
 
     /// The oracle's error of a link (receiver `r`, source `s`) with
-    /// visible fraction `v` (1 before it is known): the largest change of
-    /// radiosity, ρ_r times irradiance, that treating the two as points
-    /// can make over the receiver, W/m². Infinite when their spheres
-    /// touch.
+    /// visible fraction `v`: the largest change of radiosity, ρ_r times
+    /// irradiance, that treating the two as points can make over the
+    /// receiver, W/m². Infinite when their spheres touch. Least at v = 0
+    /// (what a gap missed by the rays could carry), greatest at v = ½ or 1.
     fn error(&self, scene: &Scene, elements: &[Element], r: Node, s: Node, v: f64) -> f64 {
         let t = &self.tree;
         let (r_min, r_max) = self.distances(r, s);
@@ -689,20 +700,23 @@ impl Clusters {
         if i == 0.0 {
             return 0.0;
         }
-        // The spread of 1/r² over the pair, and what a shadow edge or a
-        // member hidden from the source can change: min(V, 1 − V) of the
-        // nearest irradiance, at least 1/CLUSTER_RAYS of it (that many rays
-        // cannot rule a hidden member out).
+        // The spread of 1/r² over the pair, for the light that gets
+        // through (V of it), and what a shadow edge or a member hidden from
+        // the source can change: min(V, 1 − V) of the nearest irradiance.
+        // Both at least 1/CLUSTER_RAYS of their whole (that many rays
+        // cannot rule a gap out).
+        let floor = 1.0 / CLUSTER_RAYS as f64;
         let near = rho * i / (r_min * r_min);
-        rho * i * (1.0 / (r_min * r_min) - 1.0 / (r_max * r_max))
-            + near * v.min(1.0 - v).max(1.0 / CLUSTER_RAYS as f64)
+        rho * i * (1.0 / (r_min * r_min) - 1.0 / (r_max * r_max)) * v.max(floor)
+            + near * v.min(1.0 - v).max(floor)
     }
 
     /// The oracle on pair (receiver `r`, source `s`) with patch
     /// radiosities from `elements` and threshold `eps` (W/m²): which step
     /// to take, and the visibility rays it cast. Rays are cast only for a
-    /// pair whose geometry and brightness pass; a partly visible pair whose
-    /// shadow could exceed `eps` is opened.
+    /// pair that some visibility would let pass: when only a wholly blocked
+    /// one would, the first ray that gets through opens it. A partly
+    /// visible pair whose shadow could exceed `eps` is opened.
     #[allow(clippy::too_many_arguments)]
     pub fn examine(
         &self,
@@ -739,8 +753,26 @@ impl Clusters {
         } else {
             Step::OpenSource
         };
-        if self.error(scene, elements, r, s, 1.0) > eps {
+        // Not even a wholly blocked pair would do.
+        if self.error(scene, elements, r, s, 0.0) > eps {
             return (open, 0);
+        }
+        if self.error(scene, elements, r, s, 1.0) > eps {
+            // Only a blocked pair would do: one ray that gets through
+            // opens it. When none does, the kept value comes from fresh
+            // rays (these ones chose the pair for seeing nothing).
+            return match self.sample(scene, bvh, r, s, seed) {
+                (Sampled::Nothing, rays) => (Step::Drop, rays),
+                (Sampled::Seen, rays) => (open, rays),
+                (Sampled::Blocked, rays) => {
+                    let (again, more) = self.evaluate(scene, bvh, r, s, !seed);
+                    match again {
+                        Evaluation::Link(l) => (Step::Accept(l), rays + more),
+                        Evaluation::Unrepresentable => (open, rays + more),
+                        Evaluation::Nothing => (Step::Drop, rays + more),
+                    }
+                }
+            };
         }
         let (evaluation, rays) = self.evaluate(scene, bvh, r, s, seed);
         match evaluation {
@@ -791,6 +823,76 @@ impl Clusters {
         }
     }
 
+    /// Casts rays between points of `r` and `s`, uniform by area:
+    /// [`CLUSTER_RAYS`] stratified pairs, then [`RETRY_RAYS`] more when
+    /// none faced each other. `visit` sees each pair that faces: its kernel
+    /// cos θ_x cos θ_y / r² when the ray gets through, `None` when blocked,
+    /// and returns false to stop. Returns the pairs drawn and the
+    /// pairs that faced (rays cast).
+    fn cast(
+        &self,
+        scene: &Scene,
+        bvh: &TriangleBvh,
+        r: Node,
+        s: Node,
+        seed: u64,
+        mut visit: impl FnMut(Option<f64>) -> bool,
+    ) -> (u32, u32) {
+        let t = &self.tree;
+        let mut rng = pair_stream(seed, r.key(), s.key());
+        let (mut pairs, mut valid) = (0u32, 0u32);
+        for n in [CLUSTER_RAYS, RETRY_RAYS] {
+            for (a, b) in stratified(n, &mut rng)
+                .into_iter()
+                .zip(stratified(n, &mut rng))
+            {
+                pairs += 1;
+                let (x, nx) = t.sample(scene, r, a);
+                let (y, ny) = t.sample(scene, s, DVec2::new(b.y, b.x));
+                let d = y - x;
+                let (cx, cy) = (d.dot(nx), -d.dot(ny));
+                // (Coincident points face nothing.)
+                if !(cx > 0.0 && cy > 0.0) {
+                    continue;
+                }
+                valid += 1;
+                let k = bvh
+                    .visible(x, y)
+                    .then(|| cx * cy / d.length_squared().powi(2));
+                if !visit(k) {
+                    return (pairs, valid);
+                }
+            }
+            if valid > 0 {
+                break;
+            }
+        }
+        (pairs, valid)
+    }
+
+    /// Whether any ray of [`Clusters::cast`] gets through, stopping at the
+    /// first that does, and the rays cast.
+    fn sample(
+        &self,
+        scene: &Scene,
+        bvh: &TriangleBvh,
+        r: Node,
+        s: Node,
+        seed: u64,
+    ) -> (Sampled, u64) {
+        let mut seen = false;
+        let (_, valid) = self.cast(scene, bvh, r, s, seed, |k| {
+            seen = k.is_some();
+            !seen
+        });
+        let out = match (valid, seen) {
+            (0, _) => Sampled::Nothing,
+            (_, true) => Sampled::Seen,
+            _ => Sampled::Blocked,
+        };
+        (out, u64::from(valid))
+    }
+
     /// The link (receiver `r`, source `s`) from rays between points of the
     /// two, uniform by area: its visible fraction (of the rays joining
     /// points that face each other) and its coupling, the Monte Carlo mean
@@ -807,32 +909,14 @@ impl Clusters {
         seed: u64,
     ) -> (Evaluation, u64) {
         let t = &self.tree;
-        let mut rng = pair_stream(seed, r.key(), s.key());
-        let (mut pairs, mut valid, mut seen, mut kernel) = (0u32, 0u32, 0u32, 0.0);
-        for n in [CLUSTER_RAYS, RETRY_RAYS] {
-            for (a, b) in stratified(n, &mut rng)
-                .into_iter()
-                .zip(stratified(n, &mut rng))
-            {
-                pairs += 1;
-                let (x, nx) = t.sample(scene, r, a);
-                let (y, ny) = t.sample(scene, s, DVec2::new(b.y, b.x));
-                let d = y - x;
-                let (cx, cy) = (d.dot(nx), -d.dot(ny));
-                // (Coincident points face nothing.)
-                if !(cx > 0.0 && cy > 0.0) {
-                    continue;
-                }
-                valid += 1;
-                if bvh.visible(x, y) {
-                    seen += 1;
-                    kernel += cx * cy / d.length_squared().powi(2);
-                }
+        let (mut seen, mut kernel) = (0u32, 0.0);
+        let (pairs, valid) = self.cast(scene, bvh, r, s, seed, |k| {
+            if let Some(k) = k {
+                seen += 1;
+                kernel += k;
             }
-            if valid > 0 {
-                break;
-            }
-        }
+            true
+        });
         let rays = u64::from(valid);
         if valid == 0 {
             return (Evaluation::Nothing, rays);

@@ -1516,7 +1516,7 @@ fn segment_crosses(vertices: &[DVec3], normal: DVec3, a: DVec3, b: DVec3, tol: f
 }
 
 /// Visibility rays per partly visible link in [`point_radiosity`].
-pub const POINT_RAYS: usize = 16;
+pub const POINT_RAYS: usize = 8;
 
 /// A partly visible link whose light at a point, ρ F B, is below this
 /// fraction of the brightness threshold `bf_eps` keeps its own visible

@@ -3,9 +3,11 @@
 //! clusters, and links and rays grow far slower than k².
 
 use glam::DVec3;
+use nusselt::cluster::{ClusterTree, Clusters, Node, Step};
 use nusselt::hierarchical::{
     Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
 };
+use nusselt::hierarchy::Hierarchy;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::scene_bvh;
 use nusselt::progress::Progress;
@@ -302,4 +304,124 @@ fn links_and_rays_grow_far_slower_than_k_squared() {
     assert!(links < 1.4 && rays < 1.4, "links {links}, rays {rays}");
     // Far below the k² pairs a start without clusters would evaluate.
     assert!(last.1 < 0.1 * last.0 * last.0, "{last:?}");
+}
+
+/// A 1 m² lamp 2 m above two floor tiles, with or without an opaque slab
+/// between them; the cluster of the two tiles (receiver) and the lamp.
+fn tiles_under_lamp(slab: bool) -> (Scene, Node, Node) {
+    let p = DVec3::new;
+    let mut tris = Vec::new();
+    let mut surfaces = Vec::new();
+    let mut add = |q: [DVec3; 4], material: u32| {
+        let s = surfaces.len() as u32;
+        surfaces.push(Surface {
+            name: format!("s{s}"),
+            node: s as usize,
+        });
+        grid(q, 1, s, material, &mut tris);
+    };
+    for x in [0.0, 0.5] {
+        add(
+            [
+                p(x, 0., 0.),
+                p(x, 0., 0.5),
+                p(x + 0.5, 0., 0.5),
+                p(x + 0.5, 0., 0.),
+            ],
+            0,
+        );
+    }
+    add(
+        [p(0., 2., 0.), p(1., 2., 0.), p(1., 2., 1.), p(0., 2., 1.)],
+        1,
+    );
+    if slab {
+        add(
+            [
+                p(-2., 1., -2.),
+                p(-2., 1., 3.),
+                p(3., 1., 3.),
+                p(3., 1., -2.),
+            ],
+            0,
+        );
+    }
+    let materials = vec![
+        Material {
+            name: "floor".into(),
+            reflectance: DVec3::splat(0.5),
+            emitted_radiance: DVec3::ZERO,
+            double_sided: false,
+        },
+        Material {
+            name: "lamp".into(),
+            reflectance: DVec3::ZERO,
+            emitted_radiance: DVec3::ONE,
+            double_sided: false,
+        },
+    ];
+    for t in &mut tris {
+        let m = &materials[t.material as usize];
+        t.reflectance = m.reflectance;
+        t.emitted_radiance = m.emitted_radiance;
+    }
+    let scene = Scene::build(tris, materials, surfaces, vec![], vec![]).unwrap();
+    let tiles: Vec<u32> = (0..scene.patches.len() as u32)
+        .filter(|&k| scene.patches[k as usize].corners[0].y == 0.0)
+        .collect();
+    let lamp = (0..scene.patches.len() as u32)
+        .find(|&k| scene.patches[k as usize].is_emitter())
+        .unwrap();
+    let tree = ClusterTree::new(&scene);
+    let pair = (0..tree.len() as u32)
+        .find(|&c| {
+            let c = &tree.clusters[c as usize];
+            let mut run = tree.order[c.first as usize..(c.first + c.count) as usize].to_vec();
+            run.sort_unstable();
+            run == tiles
+        })
+        .expect("the two tiles form a cluster");
+    (scene, Node::Cluster(pair), Node::Patch(lamp))
+}
+
+/// The cluster oracle spends rays on a pair only when some visibility
+/// would let it accept: a pair acceptable only when blocked is opened by
+/// its first ray that gets through, and, when every ray is blocked, is
+/// accepted with a value from fresh rays. Blocked pairs thus stop opening
+/// at a coarser level than visible ones.
+#[test]
+fn cluster_oracle_accepts_blocked_pairs_early_and_opens_visible_ones_cheaply() {
+    let examine = |slab: bool, eps: f64| {
+        let (scene, r, s) = tiles_under_lamp(slab);
+        let clusters = Clusters::new(&scene);
+        let elements = Hierarchy::new(&scene).elements;
+        clusters.examine(&scene, &scene_bvh(&scene), &elements, r, s, eps, 7)
+    };
+    let (mut band, mut visible_from, mut blocked_from) = (0, f64::INFINITY, f64::INFINITY);
+    for i in 0..60 {
+        let eps = 1e-4 * 1.25f64.powi(i);
+        let (open, blocked) = (examine(false, eps), examine(true, eps));
+        match open {
+            (Step::Accept(_), _) => visible_from = visible_from.min(eps),
+            (Step::OpenReceiver, 0) => {}
+            (Step::OpenReceiver, 1) => band += 1,
+            other => panic!("visible pair at eps {eps}: {other:?}"),
+        }
+        match blocked {
+            (Step::OpenReceiver, 0) => assert!(eps < visible_from),
+            (Step::Accept(link), rays) => {
+                blocked_from = blocked_from.min(eps);
+                assert_eq!(link.transfer, 0.0);
+                assert!(rays == 8 || rays == 16, "{rays} rays");
+            }
+            other => panic!("blocked pair at eps {eps}: {other:?}"),
+        }
+    }
+    assert!(band > 0 && visible_from.is_finite());
+    // The floor 1/8 of a blocked pair against 1/r² spread plus 1/8 of a
+    // visible one: accepted at a threshold several times smaller.
+    assert!(
+        4.0 * blocked_from < visible_from,
+        "{blocked_from} vs {visible_from}"
+    );
 }
