@@ -1084,6 +1084,53 @@ impl Clusters {
         out
     }
 
+    /// For each patch, which of `emitters` (at most 64: bit i stands for
+    /// `emitters[i]`) send it light through cluster links: a link that
+    /// carries some, whose source holds the emitter, gathered by the patch
+    /// or by a cluster above it.
+    pub fn emitters_lighting(&self, emitters: &[u32]) -> Vec<u64> {
+        assert!(emitters.len() <= 64, "one bit per emitter");
+        let t = &self.tree;
+        let mut own = vec![0u64; self.to_patch.len()];
+        for (i, &k) in emitters.iter().enumerate() {
+            own[k as usize] |= 1 << i;
+        }
+        // The emitters each cluster holds, children before parents.
+        let mut held = vec![0u64; t.len()];
+        for c in (0..t.len()).rev() {
+            held[c] = t.clusters[c]
+                .kids
+                .iter()
+                .map(|k| match k {
+                    Node::Patch(p) => own[*p as usize],
+                    Node::Cluster(k) => held[*k as usize],
+                })
+                .fold(0, |a, b| a | b);
+        }
+        let sources = |ls: &[ClusterLink]| {
+            ls.iter()
+                .filter(|l| l.transfer > 0.0)
+                .map(|l| match l.source {
+                    Node::Patch(p) => own[p as usize],
+                    Node::Cluster(c) => held[c as usize],
+                })
+                .fold(0, |a, b| a | b)
+        };
+        let mut out: Vec<u64> = self.to_patch.iter().map(|ls| sources(ls)).collect();
+        // What each cluster and those above it gather, parents first.
+        let mut above = vec![0u64; t.len()];
+        for c in 0..t.len() {
+            let here = above[c] | sources(&self.to_cluster[c]);
+            for k in t.clusters[c].kids {
+                match k {
+                    Node::Cluster(k) => above[k as usize] = here,
+                    Node::Patch(p) => out[p as usize] |= here,
+                }
+            }
+        }
+        out
+    }
+
     /// The children of cluster `c`.
     pub fn kids(&self, c: u32) -> [Node; 2] {
         self.tree.clusters[c as usize].kids

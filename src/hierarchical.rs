@@ -1546,6 +1546,53 @@ pub struct PointGather<'a> {
     /// in a penumbra, and a fully occluded link is not kept at all. Either
     /// empty or every emitter patch of the scene.
     pub direct: &'a [u32],
+    /// Per patch, the `direct` emitters (bit i for `direct[i]`) from which
+    /// the solution brings no light to any part of the patch
+    /// ([`dark_emitters`]): at a point there, [`PROBE_RAYS`] rays go
+    /// first, and when all are blocked the emitter counts as hidden.
+    /// Empty: none.
+    pub dark: &'a [u64],
+}
+
+/// Rays that confirm an emitter the solution found hidden from a whole
+/// patch, in [`point_radiosity`] (see [`PointGather::dark`]).
+pub const PROBE_RAYS: usize = 16;
+
+/// For each patch, the emitters among `direct` (at most 64, bit i for
+/// `direct[i]`) that no link of the solution carrying light joins to the
+/// patch: no element link on any of its elements with a source on the
+/// emitter, no cluster link whose source holds it.
+pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u32]) -> Vec<u64> {
+    let n = scene.patches.len();
+    let mut bit = vec![0u64; n];
+    for (i, &k) in direct.iter().enumerate() {
+        bit[k as usize] |= 1 << i;
+    }
+    let h = &solution.hierarchy;
+    let mut lit = match &solution.clusters {
+        Some(c) => c.emitters_lighting(direct),
+        None => vec![0; n],
+    };
+    let per_element: Vec<u64> = solution
+        .links
+        .par_iter()
+        .with_min_len(256)
+        .map(|ls| {
+            ls.iter()
+                .filter(|l| l.coupling() > 0.0)
+                .map(|l| bit[h.get(l.source).patch as usize])
+                .fold(0, |a, b| a | b)
+        })
+        .collect();
+    for (e, mask) in h.elements.iter().zip(per_element) {
+        lit[e.patch as usize] |= mask;
+    }
+    let all = if direct.len() == 64 {
+        u64::MAX
+    } else {
+        (1u64 << direct.len()) - 1
+    };
+    lit.into_iter().map(|m| all & !m).collect()
 }
 
 /// Radiosity at point `x` of leaf `leaf` by a final gather over the links
@@ -1583,7 +1630,8 @@ pub fn point_radiosity(
     };
     let dim_light = DIM_LINK_FRACTION * solution.thresholds.bf_eps;
     let mut irradiance = DVec3::ZERO;
-    for &k in gather.direct {
+    let dark = gather.dark.get(e.patch as usize).copied().unwrap_or(0);
+    for (i, &k) in gather.direct.iter().enumerate() {
         let emitter = &scene.patches[k as usize];
         if !((x - emitter.corners[0]).dot(emitter.normal) > 0.0) {
             continue;
@@ -1592,6 +1640,11 @@ pub fn point_radiosity(
         if f > 0.0 {
             // Streams above the element ids: patch k's rays.
             let stream = u32::MAX - k;
+            if dark >> i & 1 == 1
+                && visible(emitter.vertices(), emitter.normal, PROBE_RAYS, stream) == Some(0.0)
+            {
+                continue;
+            }
             let mut v = visible(emitter.vertices(), emitter.normal, DIRECT_RAYS, stream);
             if v.is_some_and(|v| v > 0.0 && v < 1.0) {
                 // In a penumbra: a finer estimate.

@@ -17,7 +17,10 @@
 //! 3. Each vertex's radiosity by a final gather at the vertex
 //!    ([`point_radiosity`]) from the leaf that holds it, the emitters'
 //!    direct light gathered at the vertex itself (exact form factor and
-//!    its own rays) for up to [`MAX_DIRECT_EMITTERS`] emitter patches.
+//!    its own rays) for up to [`MAX_DIRECT_EMITTERS`] emitter patches; an
+//!    emitter from which no link of the solution brings light to any part
+//!    of the vertex's patch is first checked with a few rays
+//!    ([`dark_emitters`]).
 //! 4. `discontinuity` only, output adaptivity: a triangle whose centroid's
 //!    point value differs from the interpolation of its vertices by more
 //!    than the tolerance gets its centroid as a new point; the patches are
@@ -42,7 +45,9 @@ use rayon::prelude::*;
 
 use crate::discontinuity::{Segment, SegmentKind};
 use crate::error::Result;
-use crate::hierarchical::{HierarchicalSolution, PointGather, point_radiosity, scene_scales};
+use crate::hierarchical::{
+    HierarchicalSolution, PointGather, dark_emitters, point_radiosity, scene_scales,
+};
 use crate::hierarchy::{ElementId, Hierarchy};
 use crate::mesh::OutputMesh;
 use crate::scene::Scene;
@@ -357,6 +362,8 @@ pub struct PointEvaluator<'a> {
     solution: &'a HierarchicalSolution,
     seed: u64,
     direct: Vec<u32>,
+    /// [`PointGather::dark`].
+    dark: Vec<u64>,
 }
 
 impl<'a> PointEvaluator<'a> {
@@ -372,12 +379,14 @@ impl<'a> PointEvaluator<'a> {
         if direct.len() > MAX_DIRECT_EMITTERS {
             direct.clear();
         }
+        let dark = dark_emitters(scene, solution, &direct);
         PointEvaluator {
             scene,
             bvh,
             solution,
             seed,
             direct,
+            dark,
         }
     }
 
@@ -394,6 +403,7 @@ impl<'a> PointEvaluator<'a> {
         let gather = PointGather {
             every_link,
             direct: &self.direct,
+            dark: &self.dark,
         };
         point_radiosity(
             self.scene,

@@ -5,7 +5,8 @@
 use glam::DVec3;
 use nusselt::cluster::{ClusterTree, Clusters, Node, Step};
 use nusselt::hierarchical::{
-    Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
+    Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, dark_emitters,
+    solve_hierarchical,
 };
 use nusselt::hierarchy::Hierarchy;
 use nusselt::load::{LoadOptions, load_scene};
@@ -118,11 +119,17 @@ pub(crate) fn room(spec: Room) -> Scene {
             add(*q, (n / 2).max(1), 0, &mut tris);
         }
     }
+    painted(tris, surfaces, rho, if furnace { 1.0 } else { 0.0 })
+}
+
+/// The scene of `tris` with material 0 a wall (reflectance `rho`, radiance
+/// `glow`) and material 1 a black lamp of radiance 1.
+fn painted(mut tris: Vec<InputTriangle>, surfaces: Vec<Surface>, rho: f64, glow: f64) -> Scene {
     let materials = vec![
         Material {
             name: "wall".into(),
             reflectance: DVec3::splat(rho),
-            emitted_radiance: DVec3::splat(if furnace { 1.0 } else { 0.0 }),
+            emitted_radiance: DVec3::splat(glow),
             double_sided: false,
         },
         Material {
@@ -310,62 +317,46 @@ fn links_and_rays_grow_far_slower_than_k_squared() {
 /// between them; the cluster of the two tiles (receiver) and the lamp.
 fn tiles_under_lamp(slab: bool) -> (Scene, Node, Node) {
     let p = DVec3::new;
-    let mut tris = Vec::new();
-    let mut surfaces = Vec::new();
-    let mut add = |q: [DVec3; 4], material: u32| {
-        let s = surfaces.len() as u32;
-        surfaces.push(Surface {
-            name: format!("s{s}"),
-            node: s as usize,
-        });
-        grid(q, 1, s, material, &mut tris);
-    };
-    for x in [0.0, 0.5] {
-        add(
+    let mut quads = vec![
+        (
             [
-                p(x, 0., 0.),
-                p(x, 0., 0.5),
-                p(x + 0.5, 0., 0.5),
-                p(x + 0.5, 0., 0.),
+                p(0., 0., 0.),
+                p(0., 0., 0.5),
+                p(0.5, 0., 0.5),
+                p(0.5, 0., 0.),
             ],
-            0,
-        );
-    }
-    add(
-        [p(0., 2., 0.), p(1., 2., 0.), p(1., 2., 1.), p(0., 2., 1.)],
-        1,
-    );
+            1,
+            false,
+        ),
+        (
+            [
+                p(0.5, 0., 0.),
+                p(0.5, 0., 0.5),
+                p(1., 0., 0.5),
+                p(1., 0., 0.),
+            ],
+            1,
+            false,
+        ),
+        (
+            [p(0., 2., 0.), p(1., 2., 0.), p(1., 2., 1.), p(0., 2., 1.)],
+            1,
+            true,
+        ),
+    ];
     if slab {
-        add(
+        quads.push((
             [
                 p(-2., 1., -2.),
                 p(-2., 1., 3.),
                 p(3., 1., 3.),
                 p(3., 1., -2.),
             ],
-            0,
-        );
+            1,
+            false,
+        ));
     }
-    let materials = vec![
-        Material {
-            name: "floor".into(),
-            reflectance: DVec3::splat(0.5),
-            emitted_radiance: DVec3::ZERO,
-            double_sided: false,
-        },
-        Material {
-            name: "lamp".into(),
-            reflectance: DVec3::ZERO,
-            emitted_radiance: DVec3::ONE,
-            double_sided: false,
-        },
-    ];
-    for t in &mut tris {
-        let m = &materials[t.material as usize];
-        t.reflectance = m.reflectance;
-        t.emitted_radiance = m.emitted_radiance;
-    }
-    let scene = Scene::build(tris, materials, surfaces, vec![], vec![]).unwrap();
+    let scene = lit_quads(&quads);
     let tiles: Vec<u32> = (0..scene.patches.len() as u32)
         .filter(|&k| scene.patches[k as usize].corners[0].y == 0.0)
         .collect();
@@ -424,4 +415,108 @@ fn cluster_oracle_accepts_blocked_pairs_early_and_opens_visible_ones_cheaply() {
         4.0 * blocked_from < visible_from,
         "{blocked_from} vs {visible_from}"
     );
+}
+
+/// A 10 × 10 m ground of 100 patches under a 1 m² lamp 40 m up, with an
+/// opaque 3 × 3 m slab 1 m over one corner of it.
+fn ground_under_far_lamp() -> Scene {
+    let p = DVec3::new;
+    lit_quads(&[
+        (
+            [
+                p(0., 0., 0.),
+                p(0., 0., 10.),
+                p(10., 0., 10.),
+                p(10., 0., 0.),
+            ],
+            10,
+            false,
+        ),
+        (
+            [
+                p(4., 40., 4.),
+                p(5., 40., 4.),
+                p(5., 40., 5.),
+                p(4., 40., 5.),
+            ],
+            1,
+            true,
+        ),
+        (
+            [
+                p(-0.5, 1., -0.5),
+                p(-0.5, 1., 3.),
+                p(3., 1., 3.),
+                p(3., 1., -0.5),
+            ],
+            1,
+            false,
+        ),
+    ])
+}
+
+/// A scene of quads, each an n × n grid (counter-clockwise seen from the
+/// front, one surface each): grey (ρ = 0.5) or, when marked, a lamp
+/// (radiance 1, black).
+fn lit_quads(quads: &[([DVec3; 4], usize, bool)]) -> Scene {
+    let mut tris = Vec::new();
+    let mut surfaces = Vec::new();
+    for (s, &(q, n, lamp)) in quads.iter().enumerate() {
+        surfaces.push(Surface {
+            name: format!("s{s}"),
+            node: s,
+        });
+        grid(q, n, s as u32, u32::from(lamp), &mut tris);
+    }
+    painted(tris, surfaces, 0.5, 0.0)
+}
+
+/// The emitters the point gather may confirm with a few rays: those from
+/// which no link carrying light reaches any part of a patch. Checked
+/// against the solution's own gather: no element link brings a dark
+/// emitter's light to the patch, and no cluster link either. With
+/// clusters, ground patches far from the lamp get its light through
+/// cluster links only.
+#[test]
+fn emitters_hidden_from_whole_patches_are_marked_dark() {
+    let scene = ground_under_far_lamp();
+    let lamp = scene.patches.iter().position(|p| p.is_emitter()).unwrap() as u32;
+    for clustering in [Clustering::Off, Clustering::On] {
+        let s = solve(&scene, clustering, Accuracy::preview());
+        let dark = dark_emitters(&scene, &s, &[lamp]);
+        let by_links = s.irradiance_from(|p| p == lamp);
+        let mut from_links = vec![false; scene.patches.len()];
+        for id in s.hierarchy.leaves() {
+            let e = s.hierarchy.get(id);
+            from_links[e.patch as usize] |= by_links[id.index()].x > 0.0;
+        }
+        let from_clusters = |p: usize| s.cluster_direct.get(p).is_some_and(|d| d.x > 0.0);
+        let (mut n_dark, mut clusters_only) = (0, 0);
+        for p in 0..scene.patches.len() {
+            if dark[p] == 1 {
+                n_dark += 1;
+                assert!(
+                    !from_links[p] && !from_clusters(p),
+                    "{clustering:?}: patch {p}"
+                );
+            } else if !from_links[p] && from_clusters(p) {
+                clusters_only += 1;
+            }
+        }
+        eprintln!(
+            "{clustering:?}: {n_dark} dark patches, {clusters_only} lit through clusters only"
+        );
+        // Without clusters: the lamp itself and the ground under the slab
+        // (9 patches). With them, the cluster links that light the ground
+        // also cover the patches under the slab (a cluster shares its
+        // light among its members by direction): only the lamp is dark.
+        if clustering == Clustering::On {
+            assert!(
+                n_dark >= 1 && clusters_only > 0,
+                "{n_dark}, {clusters_only}"
+            );
+        } else {
+            assert!(n_dark >= 10 && clusters_only == 0, "{n_dark}");
+        }
+    }
 }
