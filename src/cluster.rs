@@ -315,6 +315,24 @@ impl ClusterTree {
         }
     }
 
+    /// A value per cluster made from its two children's, bottom up:
+    /// `patch(p)` for a patch, `join` of the two for a cluster.
+    pub fn fold_up<T: Copy + Default>(
+        &self,
+        patch: impl Fn(u32) -> T,
+        join: impl Fn(T, T) -> T,
+    ) -> Vec<T> {
+        let mut out = vec![T::default(); self.len()];
+        for c in (0..self.len()).rev() {
+            let [a, b] = self.clusters[c].kids.map(|k| match k {
+                Node::Patch(p) => patch(p),
+                Node::Cluster(k) => out[k as usize],
+            });
+            out[c] = join(a, b);
+        }
+        out
+    }
+
     /// Number of clusters.
     pub fn len(&self) -> usize {
         self.clusters.len()
@@ -581,20 +599,8 @@ impl Clusters {
 
     /// Sets the patches' importance weights; a cluster takes its largest.
     pub fn set_weights(&mut self, patch: &[f64]) {
-        let t = &self.tree;
-        let mut w = vec![0.0f64; t.len()];
-        for c in (0..t.len()).rev() {
-            w[c] = t.clusters[c]
-                .kids
-                .iter()
-                .map(|k| match k {
-                    Node::Patch(p) => patch[*p as usize],
-                    Node::Cluster(k) => w[*k as usize],
-                })
-                .fold(0.0, f64::max);
-        }
+        self.cluster_weight = self.tree.fold_up(|p| patch[p as usize], f64::max);
         self.patch_weight = patch.to_vec();
-        self.cluster_weight = w;
     }
 
     /// The importance weight of node `n` (1 without importance).
@@ -1095,18 +1101,8 @@ impl Clusters {
         for (i, &k) in emitters.iter().enumerate() {
             own[k as usize] |= 1 << i;
         }
-        // The emitters each cluster holds, children before parents.
-        let mut held = vec![0u64; t.len()];
-        for c in (0..t.len()).rev() {
-            held[c] = t.clusters[c]
-                .kids
-                .iter()
-                .map(|k| match k {
-                    Node::Patch(p) => own[*p as usize],
-                    Node::Cluster(k) => held[*k as usize],
-                })
-                .fold(0, |a, b| a | b);
-        }
+        // The emitters each cluster holds.
+        let held = t.fold_up(|p| own[p as usize], |a, b| a | b);
         let sources = |ls: &[ClusterLink]| {
             ls.iter()
                 .filter(|l| l.transfer > 0.0)

@@ -86,18 +86,9 @@ pub(crate) fn room(spec: Room) -> Scene {
         rho,
         furnace,
     } = spec;
-    let mut tris = Vec::new();
-    let mut surfaces = Vec::new();
-    let mut add = |q: [DVec3; 4], n: usize, material: u32, tris: &mut Vec<InputTriangle>| {
-        let s = surfaces.len() as u32;
-        surfaces.push(Surface {
-            name: format!("s{s}"),
-            node: s as usize,
-        });
-        grid(q, n, s, material, tris);
-    };
+    let mut quads = Vec::new();
     for q in box_faces(DVec3::ZERO, DVec3::new(4.0, 3.0, 5.0)) {
-        add([q[0], q[3], q[2], q[1]], n, 0, &mut tris);
+        quads.push(([q[0], q[3], q[2], q[1]], n, false));
     }
     let y = 2.99;
     let lamp = [
@@ -107,7 +98,7 @@ pub(crate) fn room(spec: Room) -> Scene {
         DVec3::new(1.5, y, 3.0),
     ];
     if !furnace {
-        add(lamp, 1, 1, &mut tris);
+        quads.push((lamp, 1, true));
     }
     let lift = if floating { 0.3 } else { 0.0 };
     for b in 0..blocks {
@@ -116,15 +107,25 @@ pub(crate) fn room(spec: Room) -> Scene {
         let hi = lo + DVec3::new(0.8, 0.5 + 0.3 * b as f64, 0.7);
         let faces = box_faces(lo, hi);
         for q in &faces[usize::from(!floating)..] {
-            add(*q, (n / 2).max(1), 0, &mut tris);
+            quads.push((*q, (n / 2).max(1), false));
         }
     }
-    painted(tris, surfaces, rho, if furnace { 1.0 } else { 0.0 })
+    painted(&quads, rho, if furnace { 1.0 } else { 0.0 })
 }
 
-/// The scene of `tris` with material 0 a wall (reflectance `rho`, radiance
-/// `glow`) and material 1 a black lamp of radiance 1.
-fn painted(mut tris: Vec<InputTriangle>, surfaces: Vec<Surface>, rho: f64, glow: f64) -> Scene {
+/// A scene of quads, each an n × n grid (counter-clockwise seen from the
+/// front, one surface each): a wall (reflectance `rho`, radiance `glow`)
+/// or, when marked, a black lamp of radiance 1.
+fn painted(quads: &[([DVec3; 4], usize, bool)], rho: f64, glow: f64) -> Scene {
+    let mut tris = Vec::new();
+    let mut surfaces = Vec::new();
+    for (s, &(q, n, lamp)) in quads.iter().enumerate() {
+        surfaces.push(Surface {
+            name: format!("s{s}"),
+            node: s,
+        });
+        grid(q, n, s as u32, u32::from(lamp), &mut tris);
+    }
     let materials = vec![
         Material {
             name: "wall".into(),
@@ -356,7 +357,7 @@ fn tiles_under_lamp(slab: bool) -> (Scene, Node, Node) {
             false,
         ));
     }
-    let scene = lit_quads(&quads);
+    let scene = painted(&quads, 0.5, 0.0);
     let tiles: Vec<u32> = (0..scene.patches.len() as u32)
         .filter(|&k| scene.patches[k as usize].corners[0].y == 0.0)
         .collect();
@@ -421,54 +422,42 @@ fn cluster_oracle_accepts_blocked_pairs_early_and_opens_visible_ones_cheaply() {
 /// opaque 3 × 3 m slab 1 m over one corner of it.
 fn ground_under_far_lamp() -> Scene {
     let p = DVec3::new;
-    lit_quads(&[
-        (
-            [
-                p(0., 0., 0.),
-                p(0., 0., 10.),
-                p(10., 0., 10.),
-                p(10., 0., 0.),
-            ],
-            10,
-            false,
-        ),
-        (
-            [
-                p(4., 40., 4.),
-                p(5., 40., 4.),
-                p(5., 40., 5.),
-                p(4., 40., 5.),
-            ],
-            1,
-            true,
-        ),
-        (
-            [
-                p(-0.5, 1., -0.5),
-                p(-0.5, 1., 3.),
-                p(3., 1., 3.),
-                p(3., 1., -0.5),
-            ],
-            1,
-            false,
-        ),
-    ])
-}
-
-/// A scene of quads, each an n × n grid (counter-clockwise seen from the
-/// front, one surface each): grey (ρ = 0.5) or, when marked, a lamp
-/// (radiance 1, black).
-fn lit_quads(quads: &[([DVec3; 4], usize, bool)]) -> Scene {
-    let mut tris = Vec::new();
-    let mut surfaces = Vec::new();
-    for (s, &(q, n, lamp)) in quads.iter().enumerate() {
-        surfaces.push(Surface {
-            name: format!("s{s}"),
-            node: s,
-        });
-        grid(q, n, s as u32, u32::from(lamp), &mut tris);
-    }
-    painted(tris, surfaces, 0.5, 0.0)
+    painted(
+        &[
+            (
+                [
+                    p(0., 0., 0.),
+                    p(0., 0., 10.),
+                    p(10., 0., 10.),
+                    p(10., 0., 0.),
+                ],
+                10,
+                false,
+            ),
+            (
+                [
+                    p(4., 40., 4.),
+                    p(5., 40., 4.),
+                    p(5., 40., 5.),
+                    p(4., 40., 5.),
+                ],
+                1,
+                true,
+            ),
+            (
+                [
+                    p(-0.5, 1., -0.5),
+                    p(-0.5, 1., 3.),
+                    p(3., 1., 3.),
+                    p(3., 1., -0.5),
+                ],
+                1,
+                false,
+            ),
+        ],
+        0.5,
+        0.0,
+    )
 }
 
 /// The emitters the point gather may confirm with a few rays: those from
