@@ -437,21 +437,52 @@ impl ClusterTree {
 
 /// A link into a cluster or a patch from a cluster or a patch (at least
 /// one of the two a cluster), kept with its receiver.
+///
+/// Twelve bytes: the scale-up scenes keep tens of millions. (Its direction
+/// is the line between the two nodes' centres, recomputed when needed.)
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClusterLink {
-    pub source: Node,
-    /// Unit direction from the receiver's centre to the source's.
-    pub direction: [f32; 3],
+    /// The source node: a patch index, or a cluster index with
+    /// [`CLUSTER_BIT`] set.
+    source: u32,
     /// ∫∫ cos θ_r cos θ_s V / (π r²) dA_s dA_r over the two (m²): the
     /// power received per unit of the source's radiosity.
     pub transfer: f32,
-    /// Visible fraction in [0, 1] of the sampled rays.
-    pub visibility: f32,
+    /// Visible fraction of the sampled rays, fixed point (0 and 1 exact).
+    visibility: u16,
 }
 
+/// Marks a cluster in [`ClusterLink`]'s packed source: patch and cluster
+/// indices stay below it (the loader's triangle cap is far lower).
+const CLUSTER_BIT: u32 = 1 << 31;
+const _: () = assert!(crate::load::MAX_TRIANGLES < CLUSTER_BIT as usize);
+const _: () = assert!(std::mem::size_of::<ClusterLink>() == 12);
+
 impl ClusterLink {
-    fn direction(&self) -> DVec3 {
-        DVec3::from(self.direction.map(f64::from))
+    fn new(source: Node, transfer: f64, visibility: f64) -> ClusterLink {
+        let source = match source {
+            Node::Patch(p) => p,
+            Node::Cluster(c) => c | CLUSTER_BIT,
+        };
+        ClusterLink {
+            source,
+            transfer: transfer as f32,
+            visibility: (visibility.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16,
+        }
+    }
+
+    /// The node the link gathers from.
+    pub fn source(&self) -> Node {
+        if self.source & CLUSTER_BIT == 0 {
+            Node::Patch(self.source)
+        } else {
+            Node::Cluster(self.source & !CLUSTER_BIT)
+        }
+    }
+
+    /// Visible fraction in [0, 1] of the sampled rays.
+    pub fn visibility(&self) -> f64 {
+        f64::from(self.visibility) / f64::from(u16::MAX)
     }
 }
 
@@ -784,7 +815,7 @@ impl Clusters {
         match evaluation {
             Evaluation::Nothing => (Step::Drop, rays),
             Evaluation::Unrepresentable => (open, rays),
-            Evaluation::Link(l) if self.error(scene, elements, r, s, l.visibility as f64) > eps => {
+            Evaluation::Link(l) if self.error(scene, elements, r, s, l.visibility()) > eps => {
                 (open, rays)
             }
             Evaluation::Link(l) if self.error(scene, elements, r, s, 0.5) <= eps => {
@@ -814,7 +845,7 @@ impl Clusters {
         link: &ClusterLink,
         eps: f64,
     ) -> bool {
-        self.error(scene, elements, r, link.source, link.visibility as f64) > eps
+        self.error(scene, elements, r, link.source(), link.visibility()) > eps
     }
 
     /// Projected area of node `n` seen from unit direction `toward`
@@ -937,15 +968,14 @@ impl Clusters {
             Node::Cluster(c) => t.clusters[c as usize].area,
         };
         let mean = kernel / f64::from(pairs);
-        let link = ClusterLink {
-            source: s,
-            direction: dir.as_vec3().to_array(),
+        let link = ClusterLink::new(
+            s,
             // A form factor is at most 1 either way: a link the budget
             // keeps between touching nodes, whose 1/r² is unbounded, never
             // carries more than its source radiates.
-            transfer: (area(r) * area(s) * mean / PI).min(area(r).min(area(s))) as f32,
-            visibility: (f64::from(seen) / f64::from(valid)) as f32,
-        };
+            (area(r) * area(s) * mean / PI).min(area(r).min(area(s))),
+            f64::from(seen) / f64::from(valid),
+        );
         (Evaluation::Link(link), rays)
     }
 
@@ -965,12 +995,12 @@ impl Clusters {
         gathered: &mut [DVec3],
     ) {
         let t = &self.tree;
-        // (direction, power) of each link.
-        let incoming = |ls: &[ClusterLink]| -> Vec<(DVec3, DVec3)> {
+        // (direction, power) of each link gathered by `r`.
+        let incoming = |r: Node, ls: &[ClusterLink]| -> Vec<(DVec3, DVec3)> {
             ls.iter()
                 .map(|l| {
-                    let d = l.direction();
-                    let b = match l.source {
+                    let d = (t.centre(l.source()) - t.centre(r)).normalize_or_zero();
+                    let b = match l.source() {
                         Node::Patch(p) => patch(p as usize).0,
                         Node::Cluster(c) => radiance.toward(c as usize, -d),
                     };
@@ -985,7 +1015,7 @@ impl Clusters {
             .with_min_len(64)
             .map(|(c, ls)| {
                 let mut acc = [DVec3::ZERO; 6];
-                for (d, power) in incoming(ls) {
+                for (d, power) in incoming(Node::Cluster(c as u32), ls) {
                     let w = lobes(d);
                     let area = dot(&radiance.area[c], &w);
                     if area > 0.0 {
@@ -1020,7 +1050,10 @@ impl Clusters {
             .enumerate()
             .with_min_len(256)
             .map(|(p, ls)| {
-                let power: DVec3 = incoming(ls).into_iter().map(|(_, e)| e).sum();
+                let power: DVec3 = incoming(Node::Patch(p as u32), ls)
+                    .into_iter()
+                    .map(|(_, e)| e)
+                    .sum();
                 power / scene.patches[p].area
             })
             .collect();
@@ -1081,7 +1114,7 @@ impl Clusters {
             let own = std::mem::take(self.links_mut(r));
             for (l, reject) in own.into_iter().zip(marks) {
                 if reject {
-                    out.push((r, l.source));
+                    out.push((r, l.source()));
                 } else {
                     self.links_mut(r).push(l);
                 }
@@ -1106,7 +1139,7 @@ impl Clusters {
         let sources = |ls: &[ClusterLink]| {
             ls.iter()
                 .filter(|l| l.transfer > 0.0)
-                .map(|l| match l.source {
+                .map(|l| match l.source() {
                     Node::Patch(p) => own[p as usize],
                     Node::Cluster(c) => held[c as usize],
                 })
@@ -1156,5 +1189,23 @@ mod tests {
             let exact = n.dot(d).max(0.0);
             assert!((dot(&normal_lobes(n), &lobes(d)) - exact).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn cluster_links_pack_their_source_and_visibility() {
+        let top = CLUSTER_BIT - 1;
+        for node in [
+            Node::Patch(0),
+            Node::Patch(top),
+            Node::Cluster(0),
+            Node::Cluster(top),
+        ] {
+            let link = ClusterLink::new(node, 0.5, 1.0);
+            assert_eq!(link.source(), node);
+            assert_eq!((link.transfer, link.visibility()), (0.5, 1.0));
+        }
+        assert_eq!(ClusterLink::new(Node::Patch(3), 0.0, 0.0).visibility(), 0.0);
+        let v = ClusterLink::new(Node::Cluster(3), 0.0, 0.3).visibility();
+        assert!((v - 0.3).abs() < 1e-4, "{v}");
     }
 }

@@ -252,22 +252,39 @@ const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchy::Element>()
     + 2 * std::mem::size_of::<DVec3>()
     + std::mem::size_of::<Vec<Decision>>()) as u64;
 
-/// Bytes per link in [`memory_estimate`]: the link, its oracle decision,
-/// and the pair and evaluation it takes while being settled.
+/// Bytes per link in [`memory_estimate`] other than a kept cluster link:
+/// an element link, its oracle decision, and the pair and evaluation it
+/// takes while being settled; or a cluster pair waiting for the oracle
+/// (the pair with spare capacity, the oracle's step), which is less. Not
+/// every link is being settled at once, so this also covers the spare
+/// capacity of the link lists.
 const LINK_BYTES: u64 = (std::mem::size_of::<Link>()
     + std::mem::size_of::<Decision>()
     + std::mem::size_of::<Pair>()
     + std::mem::size_of::<(Link, u64, Decision)>()) as u64;
 
+/// Bytes per kept cluster link in [`memory_estimate`]: the link, doubled
+/// for the spare capacity of its list.
+const CLUSTER_LINK_BYTES: u64 = 2 * std::mem::size_of::<ClusterLink>() as u64;
+
+const _: () = assert!(
+    LINK_BYTES as usize
+        >= 2 * std::mem::size_of::<(Node, Node)>() + std::mem::size_of::<(Step, u64)>()
+);
+
 /// The peak memory of a hierarchical solve with `elements` elements and
-/// `links` links, in bytes: counts times per-item sizes, doubled for the
-/// spare capacity of growing vectors. Cheap (no walk over the lists), and
-/// above what the solver holds: the memory budget is checked against it.
-pub fn memory_estimate(elements: u64, links: u64) -> u64 {
+/// `links` links, `cluster_links` of them kept cluster links, in bytes:
+/// counts times per-item sizes, the elements' doubled for the spare
+/// capacity of growing vectors. Cheap (no walk over the lists), and above
+/// what the solver holds: the memory budget is checked against it. (The
+/// scene, its BVH and the cluster tree, fixed before solving starts, are
+/// not counted.)
+pub fn memory_estimate(elements: u64, links: u64, cluster_links: u64) -> u64 {
+    let cluster_links = cluster_links.min(links);
     elements
-        .saturating_mul(ELEMENT_BYTES)
-        .saturating_add(links.saturating_mul(LINK_BYTES))
-        .saturating_mul(2)
+        .saturating_mul(2 * ELEMENT_BYTES)
+        .saturating_add((links - cluster_links).saturating_mul(LINK_BYTES))
+        .saturating_add(cluster_links.saturating_mul(CLUSTER_LINK_BYTES))
 }
 
 /// A resource budget of the hierarchical solver.
@@ -518,6 +535,8 @@ struct Solver<'a> {
     hierarchy: Hierarchy,
     links: Vec<Vec<Link>>,
     n_links: u64,
+    /// Of `n_links`, the kept cluster links.
+    n_cluster_links: u64,
     rays: u64,
     /// The first budget that refused a split.
     budget: Option<Budget>,
@@ -601,7 +620,9 @@ impl Solver<'_> {
             Some(Budget::Links)
         } else if acc.max_elements.is_some_and(|max| elements > max) {
             Some(Budget::Elements)
-        } else if memory_estimate(elements, links) > self.settings.memory_budget {
+        } else if memory_estimate(elements, links, self.n_cluster_links)
+            > self.settings.memory_budget
+        {
             Some(Budget::Memory)
         } else if self.out_of_time() {
             Some(Budget::Time)
@@ -632,7 +653,7 @@ impl Solver<'_> {
                 Budget::Elements => (acc.max_elements.unwrap_or(0), elements),
                 Budget::Memory => (
                     self.settings.memory_budget,
-                    memory_estimate(elements, links),
+                    memory_estimate(elements, links, self.n_cluster_links),
                 ),
                 Budget::Time => (
                     (self.settings.time_budget.unwrap_or(0.0) * 1000.0) as u64,
@@ -992,7 +1013,10 @@ impl Solver<'_> {
                     }
                 };
                 match kept {
-                    Some(link) => clusters.add(r, link),
+                    Some(link) => {
+                        clusters.add(r, link);
+                        self.n_cluster_links += 1;
+                    }
                     None => self.n_links -= 1,
                 }
             }
@@ -1010,7 +1034,8 @@ impl Solver<'_> {
         let links = self.n_links + extra;
         let hit = if acc.max_links.is_some_and(|max| links > max) {
             Some(Budget::Links)
-        } else if memory_estimate(self.hierarchy.len() as u64, links) > self.settings.memory_budget
+        } else if memory_estimate(self.hierarchy.len() as u64, links, self.n_cluster_links)
+            > self.settings.memory_budget
         {
             Some(Budget::Memory)
         } else if timed && self.out_of_time() {
@@ -1083,6 +1108,7 @@ impl Solver<'_> {
         if let Some(c) = self.clusters.as_mut() {
             let rejected = c.take_rejected(self.scene, &self.hierarchy.elements, eps);
             self.n_links -= rejected.len() as u64;
+            self.n_cluster_links -= rejected.len() as u64;
             splits += rejected.len() as u64;
             next = self.link_clusters(rejected);
         }
@@ -1368,6 +1394,7 @@ pub fn solve_hierarchical_guided(
         hierarchy: Hierarchy::new(scene),
         links: vec![Vec::new(); scene.patches.len()],
         n_links: 0,
+        n_cluster_links: 0,
         rays: 0,
         resampled: 0,
         budget: None,

@@ -110,21 +110,32 @@ fn tiny_element_budget_binds_linking_and_guided_splits() {
 fn memory_budget_bounds_the_estimate() {
     let scene = cornell();
     let budget = 4 << 20;
-    let r = run(&scene, &settings(|h| h.memory_budget = budget));
-    let hit = hit(&r);
-    let c = &r.report.counts;
-    let estimate = memory_estimate(c.elements as u64, c.links);
-    assert_eq!(hit.kind, Budget::Memory);
-    assert_eq!((hit.limit, hit.reached), (budget, estimate));
-    assert!(estimate <= budget, "{estimate} > {budget}");
-    // The estimate bounds what the solution holds.
-    assert!(
-        c.memory_bytes <= estimate,
-        "{} > {estimate}",
-        c.memory_bytes
-    );
-    // Not refused far below the limit: a quarter of it at least.
-    assert!(4 * estimate > budget, "{estimate}");
+    // With clusters the estimate counts the kept cluster links at their own
+    // size: the count it was checked against is the report's.
+    for clustering in [Clustering::Off, Clustering::On] {
+        let r = run(
+            &scene,
+            &settings(|h| {
+                h.memory_budget = budget;
+                h.clustering = clustering;
+            }),
+        );
+        let hit = hit(&r);
+        let c = &r.report.counts;
+        assert_eq!(c.cluster_links > 0, clustering == Clustering::On, "{c:?}");
+        let estimate = memory_estimate(c.elements as u64, c.links, c.cluster_links);
+        assert_eq!(hit.kind, Budget::Memory);
+        assert_eq!((hit.limit, hit.reached), (budget, estimate));
+        assert!(estimate <= budget, "{estimate} > {budget}");
+        // The estimate bounds what the solution holds.
+        assert!(
+            c.memory_bytes <= estimate,
+            "{} > {estimate}",
+            c.memory_bytes
+        );
+        // Not refused far below the limit: a quarter of it at least.
+        assert!(4 * estimate > budget, "{estimate}");
+    }
 }
 
 #[test]
