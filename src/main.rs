@@ -16,19 +16,19 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
 
+use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::classic::solve::{ClassicMethod, Convergence};
+use nusselt::hierarchical::link::Oracle;
 use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
-use nusselt::links::Oracle;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::meshing::{MeshMode, MeshSettings};
 use nusselt::output::OutputSet;
 use nusselt::pipeline::{self, SolveSettings};
-use nusselt::progress::Progress;
 use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::RenderSettings;
+use nusselt::render::view::{View, ViewOverrides};
 use nusselt::report::Report;
-use nusselt::solve::{ClassicMethod, Convergence};
-use nusselt::view::{View, ViewOverrides};
+use nusselt::util::progress::Progress;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -99,7 +99,7 @@ struct CompareArgs {
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Relative error at the top of error.png's colour scale (0.2 = 20 %).
-    #[arg(long, default_value_t = nusselt::compare::DEFAULT_MAX_ERROR)]
+    #[arg(long, default_value_t = nusselt::lab::compare::DEFAULT_MAX_ERROR)]
     max_error: f64,
 }
 
@@ -785,10 +785,10 @@ fn run_formfactors(args: FormFactorArgs) -> Result<()> {
         (None, FormFactorMethod::Hemicube) => scene.diagonal() * pipeline::DEFAULT_ELEMENT_FRACTION,
         (None, _) => f64::INFINITY,
     };
-    let mesh = nusselt::uniform::UniformMesh::new(&scene, element_size);
+    let mesh = nusselt::classic::uniform::UniformMesh::new(&scene, element_size);
     let bvh = pipeline::scene_bvh(&scene);
     let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &progress)?;
-    let pairs = nusselt::surfaces::surface_form_factors(&scene, &mesh, &matrix);
+    let pairs = nusselt::classic::surfaces::surface_form_factors(&scene, &mesh, &matrix);
     let mut out = String::from("from,to,form_factor,reverse,reciprocity_error,row_sum\n");
     for p in &pairs {
         out.push_str(&format!(
@@ -812,10 +812,10 @@ fn run_compare(args: CompareArgs) -> Result<()> {
     if !(args.max_error > 0.0 && args.max_error.is_finite()) {
         bail!("--max-error must be a positive fraction (0.2 = 20 %)");
     }
-    let comparison = nusselt::compare::compare_files(&args.test, &args.reference)?;
+    let comparison = nusselt::lab::compare::compare_files(&args.test, &args.reference)?;
     let json = nusselt::output::write_json(&comparison.metrics)?;
     if let Some(dir) = &args.output {
-        let images = nusselt::compare::error_images(
+        let images = nusselt::lab::compare::error_images(
             &comparison.test,
             &comparison.reference,
             args.max_error,
@@ -834,9 +834,9 @@ fn run_chart(args: ChartArgs) -> Result<()> {
     let runs = args
         .reports
         .iter()
-        .map(|p| nusselt::chart::read_convergence(p))
+        .map(|p| nusselt::lab::chart::read_convergence(p))
         .collect::<nusselt::Result<Vec<_>>>()?;
-    let charts = nusselt::chart::convergence_charts(&runs)?;
+    let charts = nusselt::lab::chart::convergence_charts(&runs)?;
     let mut set = OutputSet::create(&args.output)?;
     for chart in &charts {
         set.stage(&format!("{}.svg", chart.stem), chart.images.svg.as_bytes())?;
@@ -925,7 +925,7 @@ fn run_reference(args: ReferenceArgs) -> Result<()> {
 fn run_study(args: StudyArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let mut config: nusselt::study::StudyConfig = match &args.config {
+    let mut config: nusselt::lab::study::StudyConfig = match &args.config {
         Some(path) => {
             let bytes =
                 std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -942,7 +942,7 @@ fn run_study(args: StudyArgs) -> Result<()> {
     let given = match &args.reference {
         Some(path) => {
             let image = nusselt::output::exr::read_image(path)?;
-            let noise_path = nusselt::compare::noise_path(path);
+            let noise_path = nusselt::lab::compare::noise_path(path);
             let noise = noise_path
                 .exists()
                 .then(|| nusselt::output::exr::read_image(&noise_path))
@@ -952,8 +952,9 @@ fn run_study(args: StudyArgs) -> Result<()> {
         None => None,
     };
     let name = args.scene.display().to_string();
-    let result = nusselt::study::run_study(&scene, &name, &config, given, &args.output, &progress)?;
-    nusselt::study::write_study(&args.output, &result)?;
+    let result =
+        nusselt::lab::study::run_study(&scene, &name, &config, given, &args.output, &progress)?;
+    nusselt::lab::study::write_study(&args.output, &result)?;
     if !args.common.quiet {
         println!("{} runs → {}", result.rows.len(), args.output.display());
     }

@@ -56,11 +56,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::frame::Frame;
-use crate::progress::Progress;
+use crate::render::frame::Frame;
+use crate::render::view::View;
 use crate::sampling::{point_in_polygon, stream};
 use crate::scene::{Patch, Scene};
-use crate::view::View;
+use crate::util::progress::Progress;
 use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 
 /// Hard cap on the bounces of any path, whatever `max_bounces` says.

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::view::View;
+use crate::render::view::View;
 
 /// Seconds spent in each phase of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

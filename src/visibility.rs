@@ -2,7 +2,7 @@
 //! and closest hits, on an `obvhs` compressed wide BVH.
 //!
 //! Owns: ray queries (obvhs's wide BVH; the other use of obvhs is the
-//! cluster tree's BVH2, [`crate::cluster`]). Geometry is held in f32 (what
+//! cluster tree's BVH2, [`crate::hierarchical::cluster`]). Geometry is held in f32 (what
 //! obvhs traverses); callers pass f64 points.
 //!
 //! Invariants:

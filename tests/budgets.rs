@@ -9,10 +9,10 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::{SolveRun, SolveSettings, scene_bvh, solve};
-use nusselt::progress::Progress;
 use nusselt::render::RenderSettings;
+use nusselt::render::view::ViewOverrides;
 use nusselt::scene::Scene;
-use nusselt::view::ViewOverrides;
+use nusselt::util::progress::Progress;
 
 use crate::util::{assert_user_error, nusselt, on_threads};
 

@@ -1,10 +1,10 @@
-//! Charts (`nusselt::chart`, `nusselt chart`): convergence charts from
+//! Charts (`nusselt::lab::chart`, `nusselt chart`): convergence charts from
 //! synthetic reports, the reusable line chart, log axes, and errors.
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use nusselt::chart::{
+use nusselt::lab::chart::{
     Axis, CHART_SIZE, LineChart, Series, convergence_charts, draw_line_chart, read_convergence,
     run_labels,
 };

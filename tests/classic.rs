@@ -3,12 +3,12 @@
 //! solvers.
 
 use glam::DVec3;
+use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
+use nusselt::classic::uniform::UniformMesh;
 use nusselt::formfactor::form_factor_polygon_polygon;
-use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
-use nusselt::progress::Progress;
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
-use nusselt::solve::{ClassicMethod, Convergence, System, solve};
-use nusselt::uniform::UniformMesh;
+use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
 const METHODS: [ClassicMethod; 4] = [

@@ -1,18 +1,18 @@
-//! Clustering ([`nusselt::cluster`]): with and without clusters the
+//! Clustering ([`nusselt::hierarchical::cluster`]): with and without clusters the
 //! solutions agree, the enclosure and furnace identities hold with
 //! clusters, and links and rays grow far slower than k².
 
 use glam::DVec3;
-use nusselt::cluster::{ClusterTree, Clusters, Node, Step};
+use nusselt::hierarchical::cluster::{ClusterTree, Clusters, Node, Step};
+use nusselt::hierarchical::hierarchy::Hierarchy;
 use nusselt::hierarchical::{
     Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, dark_emitters,
     solve_hierarchical,
 };
-use nusselt::hierarchy::Hierarchy;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
+use nusselt::util::progress::Progress;
 
 use super::scenes::scenegen::write_scale;
 use super::util;

@@ -1,4 +1,4 @@
-//! `nusselt compare` and its library (`nusselt::compare`): metrics of
+//! `nusselt compare` and its library (`nusselt::lab::compare`): metrics of
 //! synthetic images with known differences, the reference-noise correction,
 //! the error images, and the command line's errors and exit codes.
 
@@ -6,13 +6,13 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use nusselt::Error;
-use nusselt::chart::{SCALE_BAR_HEIGHT, SCALE_BAR_MIN_WIDTH, colour_map};
-use nusselt::compare::{
+use nusselt::lab::chart::{SCALE_BAR_HEIGHT, SCALE_BAR_MIN_WIDTH, colour_map};
+use nusselt::lab::compare::{
     DEFAULT_MAX_ERROR, Named, RELATIVE_EPSILON, compare_files, compare_frames, difference,
     error_images, noise_path, relative_luminance_error,
 };
-use nusselt::frame::Frame;
 use nusselt::output::exr::{decode_image, encode_image};
+use nusselt::render::frame::Frame;
 
 use crate::util::{assert_user_error, nusselt};
 
@@ -33,7 +33,7 @@ fn named<'a>(path: &'a str, frame: &'a Frame) -> Named<'a> {
 }
 
 /// Compares without a noise image.
-fn metrics(test: &Frame, reference: &Frame) -> nusselt::compare::Metrics {
+fn metrics(test: &Frame, reference: &Frame) -> nusselt::lab::compare::Metrics {
     compare_frames(named("t.exr", test), named("r.exr", reference), None).unwrap()
 }
 
@@ -342,7 +342,7 @@ fn error_png_shows_the_relative_error_and_a_scale_bar() {
         .flat_map(|y| (0..canvas_w).map(move |x| (x, y)))
         .map(|(x, y)| png.get_pixel(x, y).0)
         .collect();
-    let background = nusselt::chart::BACKGROUND;
+    let background = nusselt::lab::chart::BACKGROUND;
     assert!(bar.iter().filter(|p| **p != background).count() > 1000);
     assert!(bar.iter().any(|p| close(*p, colour_map(0.02))));
     assert!(bar.iter().any(|p| close(*p, colour_map(0.98))));

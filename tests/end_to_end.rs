@@ -116,7 +116,7 @@ fn cornell_box_outputs_agree_with_the_solution() {
             samples_per_pixel: 4,
             seed: 0,
         },
-        &nusselt::progress::Progress::hidden(),
+        &nusselt::util::progress::Progress::hidden(),
     );
     assert_eq!(frame, again);
 

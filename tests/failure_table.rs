@@ -1,4 +1,4 @@
-//! The failure-mode table (`nusselt::failures`): its yardsticks, its rows
+//! The failure-mode table (`nusselt::lab::failures`): its yardsticks, its rows
 //! and its Markdown, on small settings.
 //!
 //! The fast part runs the table on the two scenes whose answers are exact
@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-use nusselt::failures::{
+use nusselt::lab::failures::{
     self, Outcome, Quantity, SceneTable, TableMethod, TableSettings, closed_form,
 };
 

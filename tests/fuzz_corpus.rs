@@ -91,7 +91,7 @@ fn triangulate_corpus_and_regressions_validate() {
     for file in corpus.iter().chain(&regressions) {
         let data = std::fs::read(file).expect("readable corpus file");
         match catch_unwind(AssertUnwindSafe(|| {
-            nusselt::triangulate::fuzz_triangulate(&data)
+            nusselt::meshing::triangulate::fuzz_triangulate(&data)
         })) {
             Ok(Ok(())) => {}
             Ok(Err(e)) => failed.push(format!("{}: {e}", file.display())),
@@ -172,7 +172,7 @@ fn fuzz_bodies_survive_pseudo_random_inputs() {
     for k in 0..2000 {
         let data = input(&mut rng, &tri_seeds);
         match catch_unwind(AssertUnwindSafe(|| {
-            nusselt::triangulate::fuzz_triangulate(&data)
+            nusselt::meshing::triangulate::fuzz_triangulate(&data)
         })) {
             Ok(Ok(())) => {}
             Ok(Err(e)) => failed.push(format!("triangulate #{k}: {e} on {data:?}")),

@@ -4,17 +4,17 @@
 //! validator after every solve.
 
 use glam::DVec3;
+use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
+use nusselt::classic::uniform::UniformMesh;
 use nusselt::hierarchical::{
     Accuracy, HierarchicalSettings, HierarchicalSolution, VertexValues, leaf_output_mesh,
     output_mesh, solve_hierarchical,
 };
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
 use nusselt::scene::Scene;
-use nusselt::solve::{ClassicMethod, Convergence, System, solve};
-use nusselt::uniform::UniformMesh;
+use nusselt::util::progress::Progress;
 
 use crate::classic::furnace_box;
 
@@ -325,8 +325,8 @@ fn same_radiosities_for_one_and_two_threads() {
 #[test]
 fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
     use nusselt::formfactor::form_factor_polygon_polygon_with;
-    use nusselt::hierarchy::Hierarchy;
-    use nusselt::links::evaluate_link;
+    use nusselt::hierarchical::hierarchy::Hierarchy;
+    use nusselt::hierarchical::link::evaluate_link;
 
     let scene = cornell();
     let bvh = scene_bvh(&scene);
@@ -335,7 +335,7 @@ fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
     let face = h.root(17);
     let (fe, se) = (h.get(floor), h.get(face));
     let n_s = scene.patches[17].normal;
-    let quarters_behind = nusselt::hierarchy::split_corners(fe.shape, &fe.corners)
+    let quarters_behind = nusselt::hierarchical::hierarchy::split_corners(fe.shape, &fe.corners)
         .iter()
         .all(|q| (nusselt::scene::polygon_centroid(q) - se.corners[0]).dot(n_s) < 0.0);
     assert!(quarters_behind, "the case this test is about");
@@ -420,8 +420,8 @@ fn buried_floor_under_the_blocks_is_not_averaged_into_links() {
 /// brightened is sampled again rather than split or kept.
 #[test]
 fn visibility_rays_follow_what_the_decision_needs() {
-    use nusselt::hierarchy::Hierarchy;
-    use nusselt::links::{
+    use nusselt::hierarchical::hierarchy::Hierarchy;
+    use nusselt::hierarchical::link::{
         Decision, FEW_RAYS, Oracle, SourceState, Thresholds, decide, evaluate_link, rays_needed,
     };
 
@@ -448,7 +448,7 @@ fn visibility_rays_follow_what_the_decision_needs() {
     let (dim, bright) = (state(1e-6), state(1e3));
     let evaluate = |s: &SourceState| {
         let s = *s;
-        let plan = move |l: &nusselt::links::Link| rays_needed(&t, l, re, se, &s, rho);
+        let plan = move |l: &nusselt::hierarchical::link::Link| rays_needed(&t, l, re, se, &s, rho);
         evaluate_link(&scene, &h.elements, floor, source, &bvh, 0, false, plan)
     };
     let (cheap, cast) = evaluate(&dim);

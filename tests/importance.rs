@@ -3,14 +3,14 @@
 //! refinement, with fewer elements; the report says it was used.
 
 use glam::DVec3;
-use nusselt::compare::{Named, compare_frames};
 use nusselt::hierarchical::Accuracy;
+use nusselt::lab::compare::{Named, compare_frames};
 use nusselt::pipeline::{SolveRun, SolveSettings, solve};
-use nusselt::progress::Progress;
 use nusselt::reference::{ReferenceSettings, render_reference};
 use nusselt::render::RenderSettings;
+use nusselt::render::view::{View, ViewOverrides};
 use nusselt::scene::Scene;
-use nusselt::view::{View, ViewOverrides};
+use nusselt::util::progress::Progress;
 
 use crate::clustering::{LIT, room};
 

@@ -904,8 +904,12 @@ fn hostile_huge_finite_coordinates_are_refused_before_the_bvh() {
     settings.hierarchical.accuracy = nusselt::hierarchical::Accuracy::preview();
     settings.view.width = Some(8);
     settings.view.height = Some(8);
-    let run = nusselt::pipeline::solve(&scene, &settings, &nusselt::progress::Progress::new(false))
-        .expect("a 9e11 m scene solves");
+    let run = nusselt::pipeline::solve(
+        &scene,
+        &settings,
+        &nusselt::util::progress::Progress::new(false),
+    )
+    .expect("a 9e11 m scene solves");
     assert!(run.frame.pixels.iter().flatten().all(|c| c.is_finite()));
     // The scene model refuses such coordinates too, naming the surface.
     let mut tris: Vec<nusselt::scene::InputTriangle> = Vec::new();

@@ -15,8 +15,8 @@ use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::meshing::{MeshMode, MeshSettings, MeshStats, PointEvaluator, build_mesh};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
 use nusselt::scene::Scene;
+use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
 fn cornell() -> Scene {

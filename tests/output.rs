@@ -15,9 +15,9 @@ use exr::prelude::{
 };
 use glam::Vec3;
 use nusselt::Error;
-use nusselt::frame::Frame;
 use nusselt::mesh::OutputMesh;
 use nusselt::output::{self, OutputSet, baked, exr as out_exr, png as out_png};
+use nusselt::render::frame::Frame;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 

@@ -30,8 +30,8 @@ use nusselt::hierarchical::Accuracy;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::pipeline::{SolveSettings, solve};
-use nusselt::progress::Progress;
 use nusselt::scene::{Scene, Shape, polygon_area_normal};
+use nusselt::util::progress::Progress;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 

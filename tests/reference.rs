@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use nusselt::formfactor::form_factor_point_polygon;
-use nusselt::frame::Frame;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::progress::Progress;
 use nusselt::reference::{ReferenceImage, ReferenceSettings, ReferenceStats, render_reference};
+use nusselt::render::frame::Frame;
+use nusselt::render::view::{View, ViewOverrides};
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
-use nusselt::view::{View, ViewOverrides};
+use nusselt::util::progress::Progress;
 
 use crate::util::{assert_user_error, nusselt};
 

@@ -15,17 +15,17 @@
 
 use std::path::Path;
 
+use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::classic::solve::{ClassicMethod, Convergence, System};
+use nusselt::classic::uniform::UniformMesh;
 use nusselt::hierarchical::{Accuracy, HierarchicalSettings, solve_hierarchical};
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::pipeline::{Method, SolveRun, SolveSettings, scene_bvh, solve};
-use nusselt::progress::Progress;
 use nusselt::render::RenderSettings;
+use nusselt::render::view::ViewOverrides;
 use nusselt::report::Report;
 use nusselt::scene::Scene;
-use nusselt::solve::{ClassicMethod, Convergence, System};
-use nusselt::uniform::UniformMesh;
-use nusselt::view::ViewOverrides;
+use nusselt::util::progress::Progress;
 
 use crate::closed_forms::c14;
 
@@ -380,7 +380,7 @@ fn shared_edge_form_factor_matches_its_closed_form() {
             emission: &emission,
             area: &area,
         };
-        let solution = nusselt::solve::solve(
+        let solution = nusselt::classic::solve::solve(
             &system,
             ClassicMethod::Direct,
             &Convergence::default(),

@@ -8,10 +8,10 @@ use std::time::Instant;
 use glam::DVec3;
 use nusselt::Error;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::scene::{Patch, Scene, Shape};
-use nusselt::triangulate::{
+use nusselt::meshing::triangulate::{
     PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches, validate_patch_mesh,
 };
+use nusselt::scene::{Patch, Scene, Shape};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -325,7 +325,7 @@ fn random_fuzz_inputs_validate() {
     for case in 0..cases {
         let len = rng.random_range(1..200);
         let data: Vec<u8> = (0..len).map(|_| rng.random()).collect();
-        if let Err(e) = nusselt::triangulate::fuzz_triangulate(&data) {
+        if let Err(e) = nusselt::meshing::triangulate::fuzz_triangulate(&data) {
             panic!("case {case} ({data:?}): {e}");
         }
     }

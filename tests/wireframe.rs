@@ -1,12 +1,12 @@
-//! The wireframe overlay (`nusselt::wireframe`) and its compositing into
+//! The wireframe overlay (`nusselt::render::wireframe`) and its compositing into
 //! `render.png` (`output::png::encode_png_with_overlay`).
 
 use glam::{DVec3, Vec3};
-use nusselt::frame::Frame;
 use nusselt::mesh::OutputMesh;
 use nusselt::output::png::{Overlay, display_byte, encode_png, encode_png_with_overlay};
-use nusselt::view::{View, ViewOverrides};
-use nusselt::wireframe::wireframe_mask;
+use nusselt::render::frame::Frame;
+use nusselt::render::view::{View, ViewOverrides};
+use nusselt::render::wireframe::wireframe_mask;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 

@@ -16,12 +16,12 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
+use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
+use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
+use nusselt::classic::uniform::UniformMesh;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
-use nusselt::solve::{ClassicMethod, Convergence, System, solve};
-use nusselt::uniform::UniformMesh;
+use nusselt::util::progress::Progress;
 
 const METHODS: [(&str, ClassicMethod); 4] = [
     ("direct", ClassicMethod::Direct),

@@ -29,7 +29,7 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
+use nusselt::util::progress::Progress;
 
 const DEFAULT_SCENES: [&str; 2] = ["scenes/cornell-box.gltf", "scenes/three-rooms.gltf"];
 const DEFAULT_PRESETS: &str = "preview,default,high";

@@ -15,9 +15,9 @@
 use std::path::Path;
 
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::progress::Progress;
 use nusselt::reference::{ReferenceImage, ReferenceSettings, render_reference};
-use nusselt::view::{View, ViewOverrides};
+use nusselt::render::view::{View, ViewOverrides};
+use nusselt::util::progress::Progress;
 
 fn values(r: &ReferenceImage) -> impl Iterator<Item = (f64, f64)> + '_ {
     r.image

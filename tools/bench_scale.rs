@@ -23,7 +23,7 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::scene_bvh;
-use nusselt::progress::Progress;
+use nusselt::util::progress::Progress;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Level {

@@ -1,4 +1,4 @@
-//! Writes the failure-mode table: every method of `nusselt::failures` on
+//! Writes the failure-mode table: every method of `nusselt::lab::failures` on
 //! every stress scene, measured against closed forms and path-traced
 //! references.
 //!
@@ -14,7 +14,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use nusselt::failures::{self, Outcome, TableSettings};
+use nusselt::lab::failures::{self, Outcome, TableSettings};
 use nusselt::load::{LoadOptions, load_scene};
 
 #[derive(Parser)]

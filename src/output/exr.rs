@@ -29,8 +29,8 @@ use std::path::Path;
 use ::exr::prelude::*;
 use glam::Vec3;
 
-use crate::frame::Frame;
 use crate::mesh::OutputMesh;
+use crate::render::frame::Frame;
 use crate::{Error, Result};
 
 /// Width in pixels of both parts of `solution.exr`.

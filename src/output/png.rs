@@ -21,7 +21,7 @@
 use image::ImageEncoder;
 use image::codecs::png::PngEncoder;
 
-use crate::frame::Frame;
+use crate::render::frame::Frame;
 use crate::{Error, Result};
 
 /// The fraction of the positive luminances that [`auto_exposure`] keeps

@@ -17,13 +17,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::classic::uniform::UniformMesh;
 use crate::error::{Error, Result};
 use crate::formfactor::{
     form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon_with,
 };
-use crate::progress::Progress;
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
-use crate::uniform::UniformMesh;
+use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
 /// Default memory budget for dense matrices: 2 GiB.
@@ -195,7 +195,7 @@ impl FormFactorMatrix {
         let phase = progress.phase("form factors", n as u64);
         let ray_count = AtomicU64::new(0);
         let hemicube = (settings.kernel == Kernel::Hemicube)
-            .then(|| crate::hemicube::Hemicube::new(settings.hemicube_resolution));
+            .then(|| crate::formfactor::hemicube::Hemicube::new(settings.hemicube_resolution));
         let polygons: Vec<&[DVec3]> = mesh.elements.iter().map(|e| e.corners.as_slice()).collect();
         matrix
             .values
@@ -323,7 +323,7 @@ fn row_by_pairs(
 fn hemicube_row(
     mesh: &UniformMesh,
     polygons: &[&[DVec3]],
-    cube: &crate::hemicube::Hemicube,
+    cube: &crate::formfactor::hemicube::Hemicube,
     settings: &MatrixSettings,
     i: usize,
     row: &mut [f32],

@@ -15,21 +15,21 @@ use glam::DVec3;
 use rayon::prelude::*;
 use serde_json::json;
 
+use crate::classic::matrix::{FormFactorMatrix, MatrixSettings};
+use crate::classic::solve::{ClassicMethod, Convergence, System};
+use crate::classic::uniform::UniformMesh;
 use crate::discontinuity::{DiscontinuitySettings, discontinuity_segments};
 use crate::error::Result;
-use crate::frame::Frame;
 use crate::hierarchical::{HierarchicalSettings, solve_hierarchical_guided};
-use crate::matrix::{FormFactorMatrix, MatrixSettings};
 use crate::mesh::OutputMesh;
 use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::output::{self, OutputSet};
-use crate::progress::Progress;
+use crate::render::frame::Frame;
+use crate::render::view::{View, ViewOverrides};
 use crate::render::{RenderSettings, render};
 use crate::report::{ConvergenceReport, Counts, HistoryEntry, ImportanceReport, Power, Report};
 use crate::scene::Scene;
-use crate::solve::{ClassicMethod, Convergence, System};
-use crate::uniform::UniformMesh;
-use crate::view::{View, ViewOverrides};
+use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
 /// Default element size as a fraction of the scene diagonal.
@@ -388,7 +388,7 @@ fn solve_classic(
             snapshot_time += secs(t);
         }
     };
-    let solution = crate::solve::solve(
+    let solution = crate::classic::solve::solve(
         &system,
         method,
         &settings.convergence,
@@ -529,8 +529,8 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     let png = match (&run.report.view, run.wireframe) {
         (Some(view), true) => {
             let overlay = output::png::Overlay {
-                coverage: &crate::wireframe::wireframe_mask(&run.mesh, view),
-                color: crate::wireframe::LINE_COLOR,
+                coverage: &crate::render::wireframe::wireframe_mask(&run.mesh, view),
+                color: crate::render::wireframe::LINE_COLOR,
             };
             output::png::encode_png_with_overlay(&run.frame, exposure, &overlay)?
         }

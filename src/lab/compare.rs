@@ -3,7 +3,7 @@
 //!
 //! Owns: the definitions of every comparison metric, the reference-noise
 //! correction, and the contents of `error.exr` and `error.png` (drawn by
-//! [`crate::chart`], written by `output`).
+//! [`crate::lab::chart`], written by `output`).
 //!
 //! Definitions, over the N pixels of a channel (per channel) or the 3N
 //! values of all channels pooled (overall), with test t, reference r and
@@ -43,8 +43,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::frame::Frame;
 use crate::output::png::luminance;
+use crate::render::frame::Frame;
 use crate::{Error, Result};
 
 /// ε as a fraction of the mean absolute reference value (module doc).
@@ -392,7 +392,7 @@ pub fn error_images(test: &Frame, reference: &Frame, max_error: f64) -> Result<E
         )));
     }
     let exr = crate::output::exr::encode_image(&difference(test, reference))?;
-    let png = crate::chart::false_colour_png(
+    let png = crate::lab::chart::false_colour_png(
         reference.width,
         reference.height,
         &relative_luminance_error(test, reference),

@@ -243,7 +243,7 @@ impl Hierarchy {
 
     /// What a link's oracle needs of source `id`: the radiosity its links
     /// carry (the exposed part's) and how much its children's differ.
-    pub fn source_state(&self, id: ElementId) -> crate::links::SourceState {
+    pub fn source_state(&self, id: ElementId) -> crate::hierarchical::link::SourceState {
         let e = self.get(id);
         let unevenness = e.children().map_or(DVec3::ZERO, |kids| {
             let b = kids.map(|k| self.get(k).exposed_radiosity);
@@ -251,7 +251,7 @@ impl Hierarchy {
             let hi = b.iter().fold(DVec3::NEG_INFINITY, |a, x| a.max(*x));
             hi - lo
         });
-        crate::links::SourceState {
+        crate::hierarchical::link::SourceState {
             radiosity: e.exposed_radiosity,
             unevenness,
         }

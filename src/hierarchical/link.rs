@@ -36,7 +36,7 @@
 use glam::DVec3;
 
 use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_checked};
-use crate::hierarchy::{Element, ElementId, split_corners};
+use crate::hierarchical::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
 use crate::visibility::TriangleBvh;
@@ -484,7 +484,7 @@ pub struct Thresholds {
     pub bf_eps: f64,
     /// Absolute power threshold, W (power).
     pub power_eps: f64,
-    /// Absolute cluster-link threshold, W/m² ([`crate::cluster`]).
+    /// Absolute cluster-link threshold, W/m² ([`crate::hierarchical::cluster`]).
     pub cluster_eps: f64,
     /// Elements at or below this area (m²) are never split.
     pub min_area: f64,

@@ -9,15 +9,19 @@
 //! in a jittered grid over the pixel's footprint; sample positions depend
 //! only on (seed, pixel), so images are identical for any thread count.
 
+pub mod frame;
+pub mod view;
+pub mod wireframe;
+
 use glam::{DVec3, Vec3};
 use rand::Rng;
 use rayon::prelude::*;
 
-use crate::frame::Frame;
 use crate::mesh::OutputMesh;
-use crate::progress::Progress;
+use crate::render::frame::Frame;
+use crate::render::view::View;
 use crate::sampling::stream;
-use crate::view::View;
+use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
 /// Image sampling settings.
@@ -139,7 +143,7 @@ fn radiance(mesh: &OutputMesh, bvh: &TriangleBvh, o: DVec3, d: DVec3) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::view::ViewOverrides;
+    use crate::render::view::ViewOverrides;
 
     /// A square facing the camera with B rising linearly in x: the image
     /// shows B / π, linear across, and black outside and from behind.

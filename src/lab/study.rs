@@ -15,20 +15,20 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::chart::{self, Axis, LineChart, Series};
-use crate::compare::{self, Named};
+use crate::classic::matrix::{Kernel, MatrixSettings};
+use crate::classic::solve::ClassicMethod;
 use crate::error::{Error, Result};
-use crate::frame::Frame;
 use crate::hierarchical::{Accuracy, HierarchicalSettings, Preset};
-use crate::matrix::{Kernel, MatrixSettings};
+use crate::lab::chart::{self, Axis, LineChart, Series};
+use crate::lab::compare::{self, Named};
 use crate::output::{self, OutputSet};
 use crate::pipeline::{self, Method, SolveSettings};
-use crate::progress::Progress;
 use crate::reference::{self, ReferenceSettings, ReferenceStats};
 use crate::render::RenderSettings;
+use crate::render::frame::Frame;
+use crate::render::view::{View, ViewOverrides};
 use crate::scene::Scene;
-use crate::solve::ClassicMethod;
-use crate::view::{View, ViewOverrides};
+use crate::util::progress::Progress;
 
 /// One line of the sweep: a method, and the settings it is run at.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

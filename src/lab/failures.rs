@@ -15,7 +15,7 @@
 //! - Every run has a budget (sweeps, shots, links, the dense matrix's
 //!   memory) and reports whether it converged within it.
 //! - The yardsticks are independent of the methods measured: the closed
-//!   forms of [`crate::closed_form`] and Lambert's point-to-polygon formula
+//!   forms of [`crate::formfactor::closed_form`] and Lambert's point-to-polygon formula
 //!   for power, and the path tracer of [`crate::reference`] for the image.
 //! - Symptoms are derived from the measurements by fixed rules
 //!   ([`symptoms`]), so regenerating the table cannot flatter a method.
@@ -27,20 +27,20 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::classic::matrix::{Kernel, MatrixSettings};
+use crate::classic::solve::{ClassicMethod, Convergence};
 use crate::error::Result;
 use crate::formfactor::form_factor_point_polygon;
-use crate::frame::Frame;
 use crate::hierarchical::{Accuracy, Budget, HierarchicalSettings};
-use crate::matrix::{Kernel, MatrixSettings};
 use crate::meshing::{MeshMode, MeshSettings};
 use crate::output;
 use crate::pipeline::{self, Method, SolveSettings};
-use crate::progress::Progress;
 use crate::reference::{self, ReferenceSettings};
 use crate::render::RenderSettings;
+use crate::render::frame::Frame;
+use crate::render::view::{View, ViewOverrides};
 use crate::scene::{Patch, Scene, Shape};
-use crate::solve::{ClassicMethod, Convergence};
-use crate::view::{View, ViewOverrides};
+use crate::util::progress::Progress;
 
 /// The table's view, samples and budgets.
 #[derive(Clone, Debug, PartialEq)]
@@ -832,7 +832,7 @@ fn format_watts(w: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::closed_form::c14;
+    use crate::formfactor::closed_form::c14;
 
     fn square(corners: [DVec3; 4]) -> Patch {
         let normal = (corners[1] - corners[0])

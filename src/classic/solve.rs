@@ -18,8 +18,8 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::classic::matrix::FormFactorMatrix;
 use crate::error::{Error, Result};
-use crate::matrix::FormFactorMatrix;
 
 /// A classic solver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -1,6 +1,6 @@
 //! The hierarchical radiosity solver [HSA91] with multigridding: initial
 //! linking (from the root cluster's self-link when clustering,
-//! [`crate::cluster`], else every facing pair of input patches),
+//! [`crate::hierarchical::cluster`], else every facing pair of input patches),
 //! oracle-driven link refinement, gradient refinement, and gather +
 //! push-pull iterations (through the cluster levels too).
 //!
@@ -41,24 +41,28 @@
 //! from a sibling's by more than the gradient tolerance; repeat until a
 //! round changes nothing or `max_rounds` is reached.
 
+pub mod cluster;
+pub mod hierarchy;
+pub mod link;
+
 use std::collections::HashMap;
 use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::cluster::{ClusterLink, Clusters, Evaluation, Node, Step};
 use crate::discontinuity::Segment;
 use crate::formfactor::form_factor_point_polygon;
-use crate::hierarchy::{ElementId, Hierarchy, split_corners};
-use crate::links::{
+use crate::hierarchical::cluster::{ClusterLink, Clusters, Evaluation, Node, Step};
+use crate::hierarchical::hierarchy::{ElementId, Hierarchy, split_corners};
+use crate::hierarchical::link::{
     Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, rays_needed,
     shadow_error, sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
 };
 use crate::mesh::OutputMesh;
-use crate::progress::Progress;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::{Scene, Shape, polygon_centroid};
+use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
 /// The named accuracy presets of `--accuracy`.
@@ -84,7 +88,7 @@ pub struct Accuracy {
     /// Cluster oracle: largest accepted ρ_r times the irradiance error of
     /// a link with a cluster at one end (W/m², as a fraction of the mean
     /// emitted exitance). Finer than `bf_eps`: a cluster link also shares
-    /// its light among members it cannot see apart ([`crate::cluster`]).
+    /// its light among members it cannot see apart ([`crate::hierarchical::cluster`]).
     pub cluster_eps: f64,
     /// Elements at or below this fraction of the total area are not split.
     pub min_area: f64,
@@ -180,7 +184,7 @@ pub struct HierarchicalSettings {
     /// take, as [`memory_estimate`] counts them: no split crosses it.
     pub memory_budget: u64,
     /// Whether links start from a cluster hierarchy above the patches
-    /// ([`crate::cluster`]) or from every pair of patches.
+    /// ([`crate::hierarchical::cluster`]) or from every pair of patches.
     pub clustering: Clustering,
     /// Seconds of linking and refinement after which no element is split
     /// and no cluster pair opened unless its clusters touch: the links as
@@ -243,11 +247,11 @@ impl Default for HierarchicalSettings {
 
 /// Default of [`HierarchicalSettings::memory_budget`]: 2 GiB, the same as
 /// the dense matrix's.
-pub const DEFAULT_MEMORY_BUDGET: u64 = crate::matrix::DEFAULT_MEMORY_BUDGET;
+pub const DEFAULT_MEMORY_BUDGET: u64 = crate::classic::matrix::DEFAULT_MEMORY_BUDGET;
 
 /// Bytes per element in [`memory_estimate`]: the element, its link list,
 /// its irradiance and gathered irradiance, its list of oracle decisions.
-const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchy::Element>()
+const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::Element>()
     + std::mem::size_of::<Vec<Link>>()
     + 2 * std::mem::size_of::<DVec3>()
     + std::mem::size_of::<Vec<Decision>>()) as u64;
@@ -388,7 +392,7 @@ pub struct Round {
     /// Leaves split for their radiosity gradient.
     pub gradient_splits: u64,
     /// Links sampled again with more visibility rays because their source
-    /// got brighter ([`crate::links::rays_needed`]).
+    /// got brighter ([`crate::hierarchical::link::rays_needed`]).
     pub resampled_links: u64,
     pub elements: usize,
     pub leaves: usize,

@@ -74,7 +74,7 @@ const NONE: u32 = u32::MAX;
 ///
 /// ```
 /// use glam::DVec3;
-/// use nusselt::hemicube::Hemicube;
+/// use nusselt::formfactor::hemicube::Hemicube;
 /// // A unit square 1 above the receiver, centred (closed form 0.2395).
 /// let square: &[DVec3] = &[
 ///     DVec3::new(-0.5, -0.5, 1.0),

@@ -45,7 +45,7 @@ use glam::{DVec2, DVec3, Vec3A};
 use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2};
 use rayon::prelude::*;
 
-use crate::hierarchy::Element;
+use crate::hierarchical::hierarchy::Element;
 use crate::sampling::{pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
 use crate::visibility::TriangleBvh;

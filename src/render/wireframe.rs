@@ -28,7 +28,7 @@ use rayon::prelude::*;
 
 use crate::mesh::OutputMesh;
 use crate::render::mesh_bvh;
-use crate::view::View;
+use crate::render::view::View;
 use crate::visibility::TriangleBvh;
 
 /// Near clipping depth, as a fraction of the mesh's bounding-box diagonal.

@@ -9,6 +9,9 @@
 //! References: Lambert's contour integral for a differential area to a
 //! polygon, as catalogued by Howell; [CW93] §4.
 
+pub mod closed_form;
+pub mod hemicube;
+
 use glam::DVec3;
 use rand::Rng;
 use rand::seq::SliceRandom;

@@ -37,6 +37,8 @@
 //! the thread count (evaluations run in parallel, each into its own slot,
 //! with rays seeded per leaf and source).
 
+pub mod triangulate;
+
 use std::collections::{HashMap, HashSet};
 use std::time::Instant;
 
@@ -45,13 +47,15 @@ use rayon::prelude::*;
 
 use crate::discontinuity::{Segment, SegmentKind};
 use crate::error::Result;
+use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::{
     HierarchicalSolution, PointGather, dark_emitters, point_radiosity, scene_scales,
 };
-use crate::hierarchy::{ElementId, Hierarchy};
 use crate::mesh::OutputMesh;
+use crate::meshing::triangulate::{
+    PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches,
+};
 use crate::scene::Scene;
-use crate::triangulate::{PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches};
 use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 
 /// Where the output mesh puts its vertices.

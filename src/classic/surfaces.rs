@@ -8,9 +8,9 @@
 //! its area, both sides of double-sided surfaces included) that arrives at
 //! T: F_ST = Σ_{i∈S} A_i Σ_{j∈T} F_ij / A_S.
 
-use crate::matrix::FormFactorMatrix;
+use crate::classic::matrix::FormFactorMatrix;
+use crate::classic::uniform::UniformMesh;
 use crate::scene::Scene;
-use crate::uniform::UniformMesh;
 
 /// One ordered pair of surfaces with a non-zero factor either way.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

@@ -1,0 +1,7 @@
+//! The analysis tools around the solver: image comparison, charts,
+//! speed-against-accuracy studies and the failure-mode table.
+
+pub mod chart;
+pub mod compare;
+pub mod failures;
+pub mod study;

@@ -1,0 +1,3 @@
+//! Domain-free helpers: progress reporting.
+
+pub mod progress;
