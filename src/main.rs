@@ -18,7 +18,7 @@ use glam::DVec3;
 
 use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::classic::solve::{ClassicMethod, Convergence};
-use nusselt::hierarchical::link::Oracle;
+use nusselt::hierarchical::oracle::Oracle;
 use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::{MeshMode, MeshSettings};

@@ -6,10 +6,10 @@ use glam::DVec3;
 use nusselt::hierarchical::cluster::{ClusterTree, Clusters, Node, Step};
 use nusselt::hierarchical::hierarchy::Hierarchy;
 use nusselt::hierarchical::{
-    Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, dark_emitters,
-    solve_hierarchical,
+    Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
 };
 use nusselt::load::{LoadOptions, load_scene};
+use nusselt::meshing::point_gather::dark_emitters;
 use nusselt::pipeline::scene_bvh;
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
 use nusselt::util::progress::Progress;

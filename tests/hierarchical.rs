@@ -8,10 +8,10 @@ use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
 use nusselt::classic::uniform::UniformMesh;
 use nusselt::hierarchical::{
-    Accuracy, HierarchicalSettings, HierarchicalSolution, VertexValues, leaf_output_mesh,
-    output_mesh, solve_hierarchical,
+    Accuracy, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
 };
 use nusselt::load::{LoadOptions, load_scene};
+use nusselt::meshing::leaf::{VertexValues, leaf_output_mesh, output_mesh};
 use nusselt::pipeline::scene_bvh;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
@@ -420,9 +420,10 @@ fn buried_floor_under_the_blocks_is_not_averaged_into_links() {
 /// brightened is sampled again rather than split or kept.
 #[test]
 fn visibility_rays_follow_what_the_decision_needs() {
-    use nusselt::hierarchical::hierarchy::Hierarchy;
-    use nusselt::hierarchical::link::{
-        Decision, FEW_RAYS, Oracle, SourceState, Thresholds, decide, evaluate_link, rays_needed,
+    use nusselt::hierarchical::hierarchy::{Hierarchy, SourceState};
+    use nusselt::hierarchical::link::evaluate_link;
+    use nusselt::hierarchical::oracle::{
+        Decision, FEW_RAYS, Oracle, Thresholds, decide, rays_needed,
     };
 
     let scene = cornell();

@@ -13,7 +13,8 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
-use nusselt::meshing::{MeshMode, MeshSettings, MeshStats, PointEvaluator, build_mesh};
+use nusselt::meshing::point_gather::{LinkRays, PointEvaluator};
+use nusselt::meshing::{MeshMode, MeshSettings, MeshStats, build_mesh};
 use nusselt::pipeline::scene_bvh;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
@@ -265,7 +266,7 @@ fn adaptivity_reduces_interpolation_error() {
             for w in [[0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6]] {
                 let at = w[0] * x[0] + w[1] * x[1] + w[2] * x[2];
                 let interp = w[0] * b[0] + w[1] * b[1] + w[2] * b[2];
-                let exact = points.value(p, at, false);
+                let exact = points.value(p, at, LinkRays::PartlyVisible);
                 diff += a / 3.0 * (exact - interp).abs().max_element();
             }
             area += a;

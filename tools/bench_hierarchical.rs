@@ -24,10 +24,9 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-use nusselt::hierarchical::{
-    Accuracy, HierarchicalSettings, Preset, leaf_output_mesh, solve_hierarchical,
-};
+use nusselt::hierarchical::{Accuracy, HierarchicalSettings, Preset, solve_hierarchical};
 use nusselt::load::{LoadOptions, load_scene};
+use nusselt::meshing::leaf::leaf_output_mesh;
 use nusselt::pipeline::scene_bvh;
 use nusselt::util::progress::Progress;
 

@@ -18,10 +18,10 @@ use std::time::Instant;
 use bench_common::peak_rss_mib;
 use clap::{Parser, ValueEnum};
 use nusselt::hierarchical::{
-    Accuracy, Clustering, HierarchicalSettings, Preset, VertexValues, output_mesh,
-    solve_hierarchical,
+    Accuracy, Clustering, HierarchicalSettings, Preset, solve_hierarchical,
 };
 use nusselt::load::{LoadOptions, load_scene};
+use nusselt::meshing::leaf::{VertexValues, output_mesh};
 use nusselt::pipeline::scene_bvh;
 use nusselt::util::progress::Progress;
 

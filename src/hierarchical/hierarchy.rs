@@ -142,6 +142,18 @@ fn area_of(shape: Shape, c: &[DVec3; 4]) -> f64 {
     polygon_area_normal(&c[..n]).0
 }
 
+/// What the oracle needs to know of a link's source beyond its geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SourceState {
+    /// Its radiosity (the mean over it, for a split element).
+    pub radiosity: DVec3,
+    /// How much its radiosity varies across it (twice the standard
+    /// deviation over its leaves, per channel; zero for a leaf): the link
+    /// hands the receiver the mean, however the kernel weighs the source's
+    /// parts.
+    pub unevenness: DVec3,
+}
+
 /// All quadtrees of a scene.
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
@@ -243,7 +255,7 @@ impl Hierarchy {
 
     /// What a link's oracle needs of source `id`: the radiosity its links
     /// carry (the exposed part's) and how much its children's differ.
-    pub fn source_state(&self, id: ElementId) -> crate::hierarchical::link::SourceState {
+    pub fn source_state(&self, id: ElementId) -> SourceState {
         let e = self.get(id);
         let unevenness = e.children().map_or(DVec3::ZERO, |kids| {
             let b = kids.map(|k| self.get(k).exposed_radiosity);
@@ -251,7 +263,7 @@ impl Hierarchy {
             let hi = b.iter().fold(DVec3::NEG_INFINITY, |a, x| a.max(*x));
             hi - lo
         });
-        crate::hierarchical::link::SourceState {
+        SourceState {
             radiosity: e.exposed_radiosity,
             unevenness,
         }

@@ -1,9 +1,10 @@
-//! Links of hierarchical radiosity [HSA91]: element-to-element interactions,
-//! their evaluation (form factor, visibility, error) and the refinement
-//! oracles that decide whether a link is accurate enough.
+//! Links of hierarchical radiosity [HSA91]: element-to-element
+//! interactions and their evaluation (form factor, its error, visibility).
+//! Whether a link is accurate enough is the oracle's business
+//! ([`crate::hierarchical::oracle`]).
 //!
-//! Owns: [`Link`], [`evaluate_link`], [`Oracle`], [`Thresholds`] and the
-//! decision [`Decision`].
+//! Owns: [`Link`], [`evaluate_link`], [`weighted_visibility`],
+//! [`faces_each_other`].
 //!
 //! Invariants:
 //! - A link is stored with its receiver and names its source; argument order
@@ -17,21 +18,18 @@
 //! receiver's four virtual children (a 4-point midpoint rule of the exact
 //! inner integral, which is zero behind the source's plane), replaced by
 //! an adaptive quadrature when the points disagree by more than 10 %
-//! ([`sharpen`]); F_err = max − min of the point values at those centroids
-//! and at the receiver's corners (for elements far apart, where F is near
-//! linear over the receiver, twice the centroids' range instead). A source
-//! smaller than its receiver is also sampled at its own points
-//! (reciprocity): when that gives half as much again, the quadrature over
-//! the smaller element decides. Quadratures always run over the smaller
-//! element.
+//! (`oracle::sharpen`); F_err = max − min of the point values at those
+//! centroids and at the receiver's corners (for elements far apart, where
+//! F is near linear over the receiver, twice the centroids' range
+//! instead). A source smaller than its receiver is also sampled at its own
+//! points (reciprocity): when that gives half as much again, the
+//! quadrature over the smaller element decides. Quadratures always run
+//! over the smaller element.
 //!
 //! Visibility: the kernel-weighted unoccluded fraction of N rays between
 //! stratified points of the two elements, and its spread over the
-//! receiver's quarters (a shadow edge crossing it). N is [`FEW_RAYS`] for
-//! a link the oracle accepts whatever its visibility, else the maximum
-//! ([`rays_needed`]); a link records its N, and one whose source has
-//! brightened past what its N allows is resampled
-//! ([`Decision::Resample`]).
+//! receiver's quarters (a shadow edge crossing it). N comes from the
+//! caller's plan (the oracle's `rays_needed`); a link records its N.
 
 use glam::DVec3;
 
@@ -364,39 +362,8 @@ fn sample_visibility(
     (v, spread, probed + total as u64)
 }
 
-/// Integrand evaluations [`sharpen`] may spend on one link.
+/// Integrand evaluations [`exact_form_factor`] may spend on one link.
 const SHARPEN_EVALUATIONS: usize = 600;
-
-/// Replaces a kept link's 4-point form factor by an adaptive quadrature
-/// of the exact inner integral when the point values spread by more than a
-/// tenth of it (close or touching elements, where the midpoint rule is
-/// biased). The oracle bounds how F varies over the receiver; this makes
-/// its mean right, so that energy is conserved over the hierarchy. The
-/// quadrature's tolerance comes from [`sharpen_tolerance`]; `state` is the
-/// source's state as the oracle sees it.
-pub fn sharpen(
-    scene: &Scene,
-    t: &Thresholds,
-    link: &mut Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-) {
-    let patch = |e: &Element| &scene.patches[e.patch as usize];
-    let rho = patch(receiver).reflectance;
-    let tolerance = sharpen_tolerance(t, link, receiver.area, rho, state);
-    // The exact mean lies within the spread of the point values (nearly:
-    // they sample F's extremes): a spread within the tolerance needs
-    // nothing.
-    let (f, spread) = (link.form_factor as f64, link.error as f64);
-    if !(spread > 0.1 * f) || !(spread > tolerance) {
-        return;
-    }
-    let (n_r, n_s) = (patch(receiver).normal, patch(source).normal);
-    if let Some(exact) = exact_form_factor(receiver, n_r, source, n_s, tolerance, Some(f)) {
-        link.form_factor = exact as f32;
-    }
-}
 
 /// The unoccluded form factor receiver → source by adaptive quadrature of
 /// the exact inner integral (zero behind the far element's plane), to
@@ -405,7 +372,7 @@ pub fn sharpen(
 /// the two elements (F_rs = (A_s / A_r) F_sr): its points see the larger
 /// one smoothly, where the larger one's points may miss a small source's
 /// light altogether.
-fn exact_form_factor(
+pub(crate) fn exact_form_factor(
     receiver: &Element,
     receiver_normal: DVec3,
     source: &Element,
@@ -433,331 +400,4 @@ fn exact_form_factor(
     );
     let value = exact.value * scale;
     value.is_finite().then(|| value.clamp(0.0, 1.0))
-}
-
-/// What the oracle says about a link.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Decision {
-    /// Accurate enough: keep the link.
-    Accept,
-    /// Replace the link by links from the receiver's children.
-    SplitReceiver,
-    /// Replace the link by links to the source's children.
-    SplitSource,
-    /// Keep the pair but sample its visibility again with the rays
-    /// [`rays_needed`] asks for (its source got brighter since).
-    Resample,
-}
-
-/// The refinement oracles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Oracle {
-    /// [HSA91]: refine while the unoccluded form factor exceeds `ff_eps`.
-    Ff,
-    /// Brightness-weighted (SPLASH-2): ρ_r B_s (V F_err + V_err F + V_err F_err)
-    /// against `bf_eps` × the mean emitted exitance.
-    Bf,
-    /// [RenderPark] power: A_r F ρ_r B_s against `power_eps` × the largest
-    /// patch emitted power.
-    Power,
-}
-
-impl Oracle {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Oracle::Ff => "ff",
-            Oracle::Bf => "bf",
-            Oracle::Power => "power",
-        }
-    }
-}
-
-/// The oracle's thresholds, already scaled to the scene.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Thresholds {
-    pub oracle: Oracle,
-    /// Absolute form-factor threshold (ff).
-    pub ff_eps: f64,
-    /// Absolute radiosity threshold, W/m² (bf).
-    pub bf_eps: f64,
-    /// Absolute power threshold, W (power).
-    pub power_eps: f64,
-    /// Absolute cluster-link threshold, W/m² ([`crate::hierarchical::cluster`]).
-    pub cluster_eps: f64,
-    /// Elements at or below this area (m²) are never split.
-    pub min_area: f64,
-    /// Visibility rays per link at most (V_err = 1/rays for an unoccluded
-    /// link); see [`rays_needed`].
-    pub rays: usize,
-}
-
-impl Thresholds {
-    /// The most visibility rays a link gets: `rays` rounded up to a
-    /// multiple of 4, at most 4 × [`MAX_QUARTER_RAYS`].
-    pub fn max_rays(&self) -> usize {
-        4 * self.rays.max(1).div_ceil(4).min(MAX_QUARTER_RAYS)
-    }
-}
-
-/// Uncertainty of a link's visibility as seen over its receiver: the
-/// spread of V over the receiver's quarters (a shadow edge crossing it),
-/// plus the sampling error of V (√(V(1−V)/N) when partly visible, 1/N when
-/// all N rays agree).
-pub fn visibility_error(link: &Link) -> f64 {
-    let n = link.rays().max(1) as f64;
-    let v = link.visibility();
-    let sampling = if link.partly_visible() {
-        (v * (1.0 - v) / n).sqrt()
-    } else {
-        1.0 / n
-    };
-    link.spread() + sampling
-}
-
-/// What the oracle needs to know of a link's source beyond its geometry.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SourceState {
-    /// Its radiosity (the mean over it, for a split element).
-    pub radiosity: DVec3,
-    /// How much its radiosity varies across it (twice the standard
-    /// deviation over its leaves, per channel; zero for a leaf): the link
-    /// hands the receiver the mean, however the kernel weighs the source's
-    /// parts.
-    pub unevenness: DVec3,
-}
-
-/// The error of handing the receiver the source's mean radiosity:
-/// ρ_r F V ΔB_s (bf oracle only).
-fn source_error(link: &Link, receiver_reflectance: DVec3, source: &SourceState) -> f64 {
-    link.form_factor as f64
-        * link.visibility()
-        * (receiver_reflectance * source.unevenness).max_element()
-}
-
-/// Visibility rays for a link whose acceptance does not hang on its
-/// visibility ([`rays_needed`]): one per receiver quarter.
-pub const FEW_RAYS: usize = 4;
-
-/// The visibility rays `link` (receiver `receiver`, source `source`)
-/// needs: [`FEW_RAYS`] when the oracle accepts it whatever its visibility
-/// turns out to be (wholly visible with a shadow edge across the receiver
-/// and the sampling error of that few rays), else `t.max_rays()`.
-///
-/// A cheap link's estimate then only has to be unbiased, which a few rays
-/// are; a decision that does hang on V is made on the full estimate.
-/// Deciding on a noisy V would select on the noise: links whose few rays
-/// happened to miss a partial shadow would be kept, the others split, and
-/// light would be lost or gained on average. Only the brightness oracle
-/// weighs visibility error; the others always take the maximum.
-pub fn rays_needed(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-) -> usize {
-    let most = t.max_rays();
-    if t.oracle != Oracle::Bf || most <= FEW_RAYS {
-        return most;
-    }
-    let (f, f_err) = (link.form_factor as f64, link.error as f64);
-    let worst = Link::new(link.source, f, f_err, 1.0, 1.0, FEW_RAYS);
-    let (error, eps) = link_error(t, &worst, receiver.area, receiver_reflectance, state);
-    let minimal = !(receiver.area > t.min_area) && !(source.area > t.min_area);
-    if error <= eps || minimal {
-        FEW_RAYS
-    } else {
-        most
-    }
-}
-
-/// The oracle's error measure for a link (in the unit of its threshold) and
-/// the threshold.
-pub fn link_error(
-    t: &Thresholds,
-    link: &Link,
-    receiver_area: f64,
-    receiver_reflectance: DVec3,
-    source: &SourceState,
-) -> (f64, f64) {
-    let f = link.form_factor as f64;
-    let v = link.visibility();
-    let rho_b = (receiver_reflectance * source.radiosity).max_element();
-    match t.oracle {
-        Oracle::Ff => (f, t.ff_eps),
-        Oracle::Bf => {
-            let f_err = link.error as f64;
-            let v_err = visibility_error(link);
-            let uneven = source_error(link, receiver_reflectance, source);
-            (rho_b * (v * f_err + v_err * (f + f_err)) + uneven, t.bf_eps)
-        }
-        Oracle::Power => (receiver_area * f * v * rho_b, t.power_eps),
-    }
-}
-
-/// How closely [`sharpen`] integrates a link's form factor: to 1 % of it,
-/// or, when looser, to an error in F that moves the oracle's measure by
-/// 5 % of its threshold (for the brightness and power oracles, given the
-/// source's current radiosity; a source still dark integrates to 1 %).
-/// Bias stays a small part of what the oracle tolerates for each link,
-/// while dim links spend little. (At 1 % of the threshold the quadratures
-/// took a sixth of a default office-10k solve; at 5 % the Cornell box's
-/// patch errors moved by less than 0.03 points.)
-pub fn sharpen_tolerance(
-    t: &Thresholds,
-    link: &Link,
-    receiver_area: f64,
-    receiver_reflectance: DVec3,
-    source: &SourceState,
-) -> f64 {
-    let relative = 0.01 * link.form_factor as f64;
-    let rho_b = (receiver_reflectance * source.radiosity).max_element();
-    let (per_unit_f, eps) = match t.oracle {
-        Oracle::Ff => (1.0, t.ff_eps),
-        Oracle::Bf => (rho_b * link.visibility(), t.bf_eps),
-        Oracle::Power => (receiver_area * rho_b * link.visibility(), t.power_eps),
-    };
-    if per_unit_f > 0.0 && eps > 0.0 {
-        relative.max(0.05 * eps / per_unit_f)
-    } else {
-        relative
-    }
-}
-
-/// The part of a link's error that a shadow edge crossing the receiver
-/// causes (V's spread over the receiver's quarters), in the unit of the
-/// oracle's threshold. Summed over the links from one source patch, it
-/// bounds how wrong the receiver's light from that patch is across the
-/// receiver, however finely the source was split.
-pub fn shadow_error(
-    t: &Thresholds,
-    link: &Link,
-    receiver_area: f64,
-    receiver_reflectance: DVec3,
-    source_radiosity: DVec3,
-) -> f64 {
-    let f = link.form_factor as f64;
-    let rho_b = (receiver_reflectance * source_radiosity).max_element();
-    let spread = link.spread();
-    match t.oracle {
-        Oracle::Ff => f * spread,
-        Oracle::Bf => rho_b * (f + link.error as f64) * spread,
-        Oracle::Power => receiver_area * f * rho_b * spread,
-    }
-}
-
-/// True when `link`, whatever its visibility by `rays` rays, will be split:
-/// the oracles' errors are smallest for a fully occluded link (V = 0: no
-/// spread, the smallest sampling error), so when even that is rejected,
-/// the link needs no visibility rays ([`decide`] at V = 0 is then the
-/// decision at any V).
-pub fn split_at_any_visibility(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-    rays: usize,
-) -> bool {
-    let (f, f_err) = (link.form_factor as f64, link.error as f64);
-    let occluded = Link::new(link.source, f, f_err, 0.0, 0.0, rays);
-    matches!(
-        decide(t, &occluded, receiver, source, state, receiver_reflectance),
-        Decision::SplitReceiver | Decision::SplitSource
-    )
-}
-
-/// The decision for a link: accept it when its error is within the
-/// threshold. Otherwise, when a shadow edge crossing the receiver makes up
-/// most of the error, split the receiver (splitting the source cannot
-/// resolve a shadow on the receiver); when the source's uneven radiosity
-/// does, link to its children; else split the larger of the two elements
-/// (by area). An element at the minimum area is not split: the
-/// other one is, and the link is accepted when both are minimal. Zero
-/// links are always accepted. Before any of this, a link whose visibility
-/// stands for fewer rays than [`rays_needed`] now asks is resampled (one
-/// with no visibility sampled is decided at V = 0 by one ray: a split).
-pub fn decide(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-) -> Decision {
-    if !(link.form_factor > 0.0) {
-        return Decision::Accept;
-    }
-    let rays = link.rays();
-    if rays > 0 && rays < rays_needed(t, link, receiver, source, state, receiver_reflectance) {
-        return Decision::Resample;
-    }
-    let (error, eps) = link_error(t, link, receiver.area, receiver_reflectance, state);
-    if !(error > eps) {
-        return Decision::Accept;
-    }
-    let r_ok = receiver.area > t.min_area;
-    let s_ok = source.area > t.min_area;
-    let shadow = shadow_error(
-        t,
-        link,
-        receiver.area,
-        receiver_reflectance,
-        source.radiosity,
-    );
-    let uneven = match t.oracle {
-        Oracle::Bf => source_error(link, receiver_reflectance, state),
-        _ => 0.0,
-    };
-    match (r_ok, s_ok) {
-        (true, _) if 2.0 * shadow >= error => Decision::SplitReceiver,
-        (_, true) if 2.0 * uneven >= error => Decision::SplitSource,
-        (true, true) if receiver.area >= source.area => Decision::SplitReceiver,
-        (true, true) => Decision::SplitSource,
-        (true, false) => Decision::SplitReceiver,
-        (false, true) => Decision::SplitSource,
-        (false, false) => Decision::Accept,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn link_is_sixteen_bytes() {
-        assert_eq!(std::mem::size_of::<Link>(), 16);
-    }
-
-    #[test]
-    fn shadow_edges_across_the_receiver_weigh_most() {
-        let t = Thresholds {
-            oracle: Oracle::Bf,
-            ff_eps: 0.0,
-            bf_eps: 1.0,
-            power_eps: 0.0,
-            cluster_eps: 0.0,
-            min_area: 0.0,
-            rays: 16,
-        };
-        let err = |v: f64, spread: f64| {
-            let l = Link::new(ElementId(0), 0.1, 0.0, v, spread, 16);
-            let source = SourceState {
-                radiosity: DVec3::splat(10.0),
-                unevenness: DVec3::ZERO,
-            };
-            link_error(&t, &l, 1.0, DVec3::splat(0.5), &source).0
-        };
-        let rho_b_f = 0.5 * 10.0 * 0.1;
-        assert!((err(1.0, 0.0) - rho_b_f / 16.0).abs() < 1e-6);
-        assert!((err(0.0, 0.0) - rho_b_f / 16.0).abs() < 1e-6);
-        // Half the source hidden alike from the whole receiver: sampling
-        // error only; a shadow edge across the receiver: its spread too.
-        assert!((err(0.5, 0.0) - rho_b_f * 0.125).abs() < 1e-6);
-        assert!((err(0.5, 1.0) - rho_b_f * 1.125).abs() < 1e-4);
-    }
 }

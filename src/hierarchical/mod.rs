@@ -44,24 +44,22 @@
 pub mod cluster;
 pub mod hierarchy;
 pub mod link;
+pub mod oracle;
 
-use std::collections::HashMap;
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::discontinuity::Segment;
-use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchical::cluster::{ClusterLink, Clusters, Evaluation, Node, Step};
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy, split_corners};
-use crate::hierarchical::link::{
-    Decision, Link, Oracle, Thresholds, decide, evaluate_link, faces_each_other, rays_needed,
-    shadow_error, sharpen, split_at_any_visibility, visibility_error, weighted_visibility,
+use crate::hierarchical::link::{Link, evaluate_link, faces_each_other};
+use crate::hierarchical::oracle::{
+    Decision, Oracle, Thresholds, decide, rays_needed, shadow_error, sharpen,
+    split_at_any_visibility, visibility_error,
 };
-use crate::mesh::OutputMesh;
-use crate::sampling::{PolygonSampler, pair_stream, stratified};
-use crate::scene::{Scene, Shape, polygon_centroid};
+use crate::scene::{Scene, polygon_centroid};
 use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
@@ -392,7 +390,7 @@ pub struct Round {
     /// Leaves split for their radiosity gradient.
     pub gradient_splits: u64,
     /// Links sampled again with more visibility rays because their source
-    /// got brighter ([`crate::hierarchical::link::rays_needed`]).
+    /// got brighter ([`crate::hierarchical::oracle::rays_needed`]).
     pub resampled_links: u64,
     pub elements: usize,
     pub leaves: usize,
@@ -1544,296 +1542,4 @@ fn segment_crosses(vertices: &[DVec3], normal: DVec3, a: DVec3, b: DVec3, tol: f
         }
     }
     (hi - lo) * d.length() > tol
-}
-
-/// Visibility rays per partly visible link in [`point_radiosity`].
-pub const POINT_RAYS: usize = 8;
-
-/// A partly visible link whose light at a point, ρ F B, is below this
-/// fraction of the brightness threshold `bf_eps` keeps its own visible
-/// fraction in [`point_radiosity`]: the point's rays could move the value
-/// by less than that.
-pub const DIM_LINK_FRACTION: f64 = 0.2;
-
-/// Visibility rays per emitter patch for the direct light at a point...
-pub const DIRECT_RAYS: usize = 64;
-
-/// ... and when some but not all of them were blocked.
-pub const PENUMBRA_RAYS: usize = 256;
-
-/// How [`point_radiosity`] gathers.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct PointGather<'a> {
-    /// Cast rays for every link, not only partly visible ones: a link's
-    /// visibility, whole or none, holds for its receiver as sampled, not
-    /// for every point of it (a point just inside an occluder's
-    /// footprint).
-    pub every_link: bool,
-    /// Emitter patches whose emission is gathered at the point itself
-    /// (exact form factor, [`DIRECT_RAYS`] rays, [`PENUMBRA_RAYS`] in a
-    /// penumbra) rather than through the
-    /// links, which then carry only the emitters' reflected light: a
-    /// link's visibility is an average over its receiver, wrong at points
-    /// in a penumbra, and a fully occluded link is not kept at all. Either
-    /// empty or every emitter patch of the scene.
-    pub direct: &'a [u32],
-    /// Per patch, the `direct` emitters (bit i for `direct[i]`) from which
-    /// the solution brings no light to any part of the patch
-    /// ([`dark_emitters`]): at a point there, [`PROBE_RAYS`] rays go
-    /// first, and when all are blocked the emitter counts as hidden.
-    /// Empty: none.
-    pub dark: &'a [u64],
-}
-
-/// Rays that confirm an emitter the solution found hidden from a whole
-/// patch, in [`point_radiosity`] (see [`PointGather::dark`]).
-pub const PROBE_RAYS: usize = 16;
-
-/// For each patch, the emitters among `direct` (at most 64, bit i for
-/// `direct[i]`) that no link of the solution carrying light joins to the
-/// patch: no element link on any of its elements with a source on the
-/// emitter, no cluster link whose source holds it.
-pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u32]) -> Vec<u64> {
-    let n = scene.patches.len();
-    let mut bit = vec![0u64; n];
-    for (i, &k) in direct.iter().enumerate() {
-        bit[k as usize] |= 1 << i;
-    }
-    let h = &solution.hierarchy;
-    let mut lit = match &solution.clusters {
-        Some(c) => c.emitters_lighting(direct),
-        None => vec![0; n],
-    };
-    let per_element: Vec<u64> = solution
-        .links
-        .par_iter()
-        .with_min_len(256)
-        .map(|ls| {
-            ls.iter()
-                .filter(|l| l.coupling() > 0.0)
-                .map(|l| bit[h.get(l.source).patch as usize])
-                .fold(0, |a, b| a | b)
-        })
-        .collect();
-    for (e, mask) in h.elements.iter().zip(per_element) {
-        lit[e.patch as usize] |= mask;
-    }
-    let all = if direct.len() == 64 {
-        u64::MAX
-    } else {
-        (1u64 << direct.len()) - 1
-    };
-    lit.into_iter().map(|m| all & !m).collect()
-}
-
-/// Radiosity at point `x` of leaf `leaf` by a final gather over the links
-/// of the leaf and its ancestors: each link's source contributes its exact
-/// point-to-polygon form factor from `x` (not the link's mean over its
-/// receiver) times its radiosity, and, for a partly visible link not too
-/// dim to matter ([`DIM_LINK_FRACTION`]), the kernel-weighted visible
-/// fraction of [`POINT_RAYS`] rays from `x` (seeded by `seed`, the leaf
-/// and the source: deterministic). `gather`
-/// says which links cast rays and which emitters are gathered directly.
-/// `x` is moved a millionth of the way toward the leaf's centroid first,
-/// so that a point on an edge takes its value from inside the leaf.
-pub fn point_radiosity(
-    scene: &Scene,
-    bvh: &TriangleBvh,
-    solution: &HierarchicalSolution,
-    leaf: ElementId,
-    x: DVec3,
-    seed: u64,
-    gather: PointGather,
-) -> DVec3 {
-    let h = &solution.hierarchy;
-    let e = h.get(leaf);
-    let patch = &scene.patches[e.patch as usize];
-    let x = x + 1e-6 * (e.centroid() - x);
-    // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
-    let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
-        let mut rng = pair_stream(seed, leaf.0, stream);
-        let sampler = PolygonSampler::new(polygon);
-        let targets = stratified(n, &mut rng)
-            .into_iter()
-            .map(|t| (x, sampler.point(t)));
-        let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
-        (total > 0.0).then(|| seen / total)
-    };
-    let dim_light = DIM_LINK_FRACTION * solution.thresholds.bf_eps;
-    let mut irradiance = DVec3::ZERO;
-    let dark = gather.dark.get(e.patch as usize).copied().unwrap_or(0);
-    for (i, &k) in gather.direct.iter().enumerate() {
-        let emitter = &scene.patches[k as usize];
-        if !((x - emitter.corners[0]).dot(emitter.normal) > 0.0) {
-            continue;
-        }
-        let f = form_factor_point_polygon(x, patch.normal, emitter.vertices());
-        if f > 0.0 {
-            // Streams above the element ids: patch k's rays.
-            let stream = u32::MAX - k;
-            if dark >> i & 1 == 1
-                && visible(emitter.vertices(), emitter.normal, PROBE_RAYS, stream) == Some(0.0)
-            {
-                continue;
-            }
-            let mut v = visible(emitter.vertices(), emitter.normal, DIRECT_RAYS, stream);
-            if v.is_some_and(|v| v > 0.0 && v < 1.0) {
-                // In a penumbra: a finer estimate.
-                v = visible(emitter.vertices(), emitter.normal, PENUMBRA_RAYS, stream);
-            }
-            irradiance += f * v.unwrap_or(0.0) * emitter.emission;
-        }
-    }
-    if let Some(c) = solution.cluster_irradiance.get(e.patch as usize) {
-        irradiance += *c;
-        if !gather.direct.is_empty() {
-            irradiance -= solution.cluster_direct[e.patch as usize];
-        }
-    }
-    let mut id = Some(leaf);
-    while let Some(k) = id {
-        for l in &solution.links[k.index()] {
-            let s = h.get(l.source);
-            let source = &scene.patches[s.patch as usize];
-            if !((x - s.corners[0]).dot(source.normal) > 0.0) {
-                continue;
-            }
-            let mut b = s.exposed_radiosity;
-            if !gather.direct.is_empty() {
-                b -= source.emission;
-            }
-            if b.max_element() <= 0.0 {
-                continue;
-            }
-            let f = form_factor_point_polygon(x, patch.normal, s.vertices());
-            if !(f > 0.0) {
-                continue;
-            }
-            let dim = (patch.reflectance * f * b).max_element() < dim_light;
-            let v = if gather.every_link || (l.partly_visible() && !dim) {
-                visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
-                    .unwrap_or(l.visibility())
-            } else {
-                l.visibility()
-            };
-            irradiance += f * v * b;
-        }
-        id = h.get(k).parent();
-    }
-    patch.emission + patch.reflectance * irradiance
-}
-
-/// How the output mesh's vertex values are made.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum VertexValues {
-    /// Area-weighted mean of the leaves sharing the vertex (cheap; blurs
-    /// and biases next to edges, where leaves are large).
-    LeafMean,
-    /// [`point_radiosity`] at the vertex, from the first leaf (in mesh
-    /// order) that has it as a corner.
-    PointGather { seed: u64 },
-}
-
-/// The output mesh of a solved hierarchy, each vertex's radiosity made as
-/// `values` says.
-pub fn output_mesh(
-    scene: &Scene,
-    bvh: &TriangleBvh,
-    solution: &HierarchicalSolution,
-    values: VertexValues,
-) -> OutputMesh {
-    let (mut mesh, incidences) = leaf_mesh(scene, &solution.hierarchy);
-    let seed = match values {
-        VertexValues::LeafMean => return mesh,
-        VertexValues::PointGather { seed } => seed,
-    };
-    // One leaf per vertex (the first in mesh order) holds it.
-    let mut holder: Vec<Option<ElementId>> = vec![None; mesh.vertex_count()];
-    for &(v, leaf) in &incidences {
-        holder[v as usize].get_or_insert(leaf);
-    }
-    let values: Vec<Option<DVec3>> = holder
-        .par_iter()
-        .enumerate()
-        .with_min_len(16)
-        .map(|(v, leaf)| {
-            leaf.map(|leaf| {
-                let x = mesh.positions[v].as_dvec3();
-                point_radiosity(scene, bvh, solution, leaf, x, seed, PointGather::default())
-            })
-        })
-        .collect();
-    for (b, value) in mesh.radiosity.iter_mut().zip(values) {
-        if let Some(value) = value {
-            *b = value.max(DVec3::ZERO).as_vec3();
-        }
-    }
-    mesh
-}
-
-/// The output mesh of a solved hierarchy with leaf-mean vertex values
-/// ([`VertexValues::LeafMean`]).
-pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
-    leaf_mesh(scene, hierarchy).0
-}
-
-/// Each leaf triangulated (quad → 2 triangles, triangle → 1), vertices
-/// welded by exact position within a patch, each vertex's radiosity the
-/// area-weighted mean of the leaves of its patch having it as a corner;
-/// and the (vertex, leaf) incidences, in mesh order. (A discontinuity
-/// mesher replaces this.)
-fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, ElementId)>) {
-    let mut incidences = Vec::new();
-    let mut mesh = OutputMesh::default();
-    let mut sum: Vec<DVec3> = Vec::new();
-    let mut weight: Vec<f64> = Vec::new();
-    for patch in 0..hierarchy.root_count() {
-        let normal = scene.patches[patch].normal.as_vec3();
-        let mut index: HashMap<[u64; 3], u32> = HashMap::new();
-        let mut stack = vec![hierarchy.root(patch)];
-        while let Some(id) = stack.pop() {
-            let e = hierarchy.get(id);
-            if let Some(kids) = e.children() {
-                // Reverse so children are visited in order.
-                stack.extend(kids.iter().rev());
-                continue;
-            }
-            let corners: Vec<u32> = e
-                .vertices()
-                .iter()
-                .map(|p| {
-                    let key = p.to_array().map(f64::to_bits);
-                    *index.entry(key).or_insert_with(|| {
-                        mesh.positions.push(p.as_vec3());
-                        mesh.normals.push(normal);
-                        mesh.patch.push(patch as u32);
-                        sum.push(DVec3::ZERO);
-                        weight.push(0.0);
-                        (mesh.positions.len() - 1) as u32
-                    })
-                })
-                .collect();
-            for &k in &corners {
-                sum[k as usize] += e.area * e.radiosity;
-                weight[k as usize] += e.area;
-                incidences.push((k, id));
-            }
-            mesh.triangles.push([corners[0], corners[1], corners[2]]);
-            if e.shape == Shape::Quad {
-                mesh.triangles.push([corners[0], corners[2], corners[3]]);
-            }
-        }
-    }
-    mesh.radiosity = sum
-        .iter()
-        .zip(&weight)
-        .map(|(s, w)| {
-            if *w > 0.0 {
-                (*s / *w).max(DVec3::ZERO).as_vec3()
-            } else {
-                Vec3::ZERO
-            }
-        })
-        .collect();
-    (mesh, incidences)
 }

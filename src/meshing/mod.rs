@@ -37,6 +37,8 @@
 //! the thread count (evaluations run in parallel, each into its own slot,
 //! with rays seeded per leaf and source).
 
+pub mod leaf;
+pub mod point_gather;
 pub mod triangulate;
 
 use std::collections::{HashMap, HashSet};
@@ -47,15 +49,18 @@ use rayon::prelude::*;
 
 use crate::discontinuity::{Segment, SegmentKind};
 use crate::error::Result;
-use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
-use crate::hierarchical::{
-    HierarchicalSolution, PointGather, dark_emitters, point_radiosity, scene_scales,
-};
+use crate::hierarchical::hierarchy::Hierarchy;
+use crate::hierarchical::{HierarchicalSolution, scene_scales};
 use crate::mesh::OutputMesh;
+use crate::meshing::point_gather::{LinkRays, PointEvaluator};
 use crate::meshing::triangulate::{
     PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches,
 };
 use crate::scene::Scene;
+use crate::util::geometry::{
+    PositionKey, closest_on_segment, outside_polygon, position_key, segment_distance,
+};
+use crate::util::union_find::UnionFind;
 use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 
 /// Where the output mesh puts its vertices.
@@ -142,10 +147,10 @@ pub struct MeshStats {
 }
 
 /// A vertex value's cache key: its patch and exact position.
-type Key = (u32, [u64; 3]);
+type Key = (u32, PositionKey);
 
 fn key(patch: usize, x: DVec3) -> Key {
-    (patch as u32, x.to_array().map(f64::to_bits))
+    (patch as u32, position_key(x))
 }
 
 /// The output mesh of `solution` in the mode of `settings`. `segments` are
@@ -198,7 +203,7 @@ pub fn build_mesh(
 
     let points = PointEvaluator::new(scene, bvh, solution, settings.seed);
     stats.direct_emitters = points.direct_emitters().len();
-    let eval = |patch: usize, x: DVec3| points.value(patch, x, false);
+    let eval = |patch: usize, x: DVec3| points.value(patch, x, LinkRays::PartlyVisible);
     let (exitance, _, _) = scene_scales(scene);
     let min_area = solution.thresholds.min_area;
     let mut cache: HashMap<Key, DVec3> = HashMap::new();
@@ -326,7 +331,7 @@ pub fn build_mesh(
                 // the occluder standing there blocks them.
                 let x = tri.positions[*v as usize];
                 let d = *towards - x;
-                points.value(p, x + d * (nudge / d.length()).min(0.5), true)
+                points.value(p, x + d * (nudge / d.length()).min(0.5), LinkRays::Every)
             })
             .collect();
         stats.evaluations += copies.len();
@@ -350,76 +355,6 @@ pub fn build_mesh(
     }
     stats.evaluate_seconds += t.elapsed().as_secs_f64();
     Ok((mesh, stats))
-}
-
-/// Emitter patches whose light is gathered at each point rather than
-/// through the links, at most: beyond, the cost per vertex would grow with
-/// the emitter count, and the links carry the direct light too.
-pub const MAX_DIRECT_EMITTERS: usize = 64;
-
-/// Radiosity at any point of a solved scene: [`point_radiosity`] from the
-/// leaf holding the point, clamped at zero, with the direct light of up to
-/// [`MAX_DIRECT_EMITTERS`] emitter patches gathered at the point.
-pub struct PointEvaluator<'a> {
-    scene: &'a Scene,
-    bvh: &'a TriangleBvh,
-    solution: &'a HierarchicalSolution,
-    seed: u64,
-    direct: Vec<u32>,
-    /// [`PointGather::dark`].
-    dark: Vec<u64>,
-}
-
-impl<'a> PointEvaluator<'a> {
-    pub fn new(
-        scene: &'a Scene,
-        bvh: &'a TriangleBvh,
-        solution: &'a HierarchicalSolution,
-        seed: u64,
-    ) -> Self {
-        let mut direct: Vec<u32> = (0..scene.patches.len() as u32)
-            .filter(|&p| scene.patches[p as usize].is_emitter())
-            .collect();
-        if direct.len() > MAX_DIRECT_EMITTERS {
-            direct.clear();
-        }
-        let dark = dark_emitters(scene, solution, &direct);
-        PointEvaluator {
-            scene,
-            bvh,
-            solution,
-            seed,
-            direct,
-            dark,
-        }
-    }
-
-    /// The emitter patches gathered at each point (empty beyond
-    /// [`MAX_DIRECT_EMITTERS`]).
-    pub fn direct_emitters(&self) -> &[u32] {
-        &self.direct
-    }
-
-    /// The radiosity at `x` on patch `patch`; with `every_link`, every link
-    /// casts its own rays from `x` (see [`PointGather`]).
-    pub fn value(&self, patch: usize, x: DVec3, every_link: bool) -> DVec3 {
-        let leaf = locate(&self.solution.hierarchy, self.scene, patch, x);
-        let gather = PointGather {
-            every_link,
-            direct: &self.direct,
-            dark: &self.dark,
-        };
-        point_radiosity(
-            self.scene,
-            self.bvh,
-            self.solution,
-            leaf,
-            x,
-            self.seed,
-            gather,
-        )
-        .max(DVec3::ZERO)
-    }
 }
 
 /// A vertex side to evaluate on a contact line: `None` for the vertex
@@ -467,15 +402,8 @@ fn split_contact_vertices(
     let mut out = Vec::new();
     for v in on_line {
         let ts = &around[&v];
-        // Union-find over the triangles around v.
-        let mut parent: Vec<usize> = (0..ts.len()).collect();
-        fn find(parent: &mut [usize], mut i: usize) -> usize {
-            while parent[i] != i {
-                parent[i] = parent[parent[i]];
-                i = parent[i];
-            }
-            i
-        }
+        // Disjoint sets of the triangles around v.
+        let mut sides_of = UnionFind::new(ts.len());
         for i in 0..ts.len() {
             for j in i + 1..ts.len() {
                 let (a, b) = (tri.triangles[ts[i]], tri.triangles[ts[j]]);
@@ -483,14 +411,13 @@ fn split_contact_vertices(
                     w != v && b.contains(&w) && !contact_edges.contains(&[v.min(w), v.max(w)])
                 });
                 if joined {
-                    let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
-                    parent[ri.max(rj)] = ri.min(rj);
+                    sides_of.union(i, j);
                 }
             }
         }
         let mut sides: Vec<(usize, Vec<usize>)> = Vec::new();
         for i in 0..ts.len() {
-            let r = find(&mut parent, i);
+            let r = sides_of.find(i);
             match sides.iter_mut().find(|(root, _)| *root == r) {
                 Some((_, members)) => members.push(ts[i]),
                 None => sides.push((r, vec![ts[i]])),
@@ -566,57 +493,6 @@ fn contact_points(
     add
 }
 
-/// Distance from `x` to the segment `ab`, and the closest point.
-fn closest_on_segment(x: DVec3, a: DVec3, b: DVec3) -> (f64, DVec3) {
-    let d = b - a;
-    let len2 = d.length_squared();
-    let t = if len2 > 0.0 {
-        ((x - a).dot(d) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let y = a + t * d;
-    ((y - x).length(), y)
-}
-
-/// Distance from `x` to the segment `ab`.
-fn segment_distance(x: DVec3, a: DVec3, b: DVec3) -> f64 {
-    closest_on_segment(x, a, b).0
-}
-
-/// How far `x` lies outside the convex polygon `vertices` (counter-
-/// clockwise about `normal`): the largest distance beyond an edge line,
-/// negative inside.
-fn outside(vertices: &[DVec3], normal: DVec3, x: DVec3) -> f64 {
-    let mut worst = f64::NEG_INFINITY;
-    for (i, &p) in vertices.iter().enumerate() {
-        let edge = vertices[(i + 1) % vertices.len()] - p;
-        let len = edge.length();
-        if len > 0.0 {
-            worst = worst.max(-normal.cross(edge).dot(x - p) / len);
-        }
-    }
-    worst
-}
-
-/// The leaf of `patch`'s quadtree holding `x`: from the root, the child
-/// that `x` is least outside of (the first such, on a shared edge).
-fn locate(h: &Hierarchy, scene: &Scene, patch: usize, x: DVec3) -> ElementId {
-    let normal = scene.patches[patch].normal;
-    let mut id = h.root(patch);
-    while let Some(kids) = h.get(id).children() {
-        let mut best = (f64::INFINITY, kids[0]);
-        for k in kids {
-            let d = outside(h.get(k).vertices(), normal, x);
-            if d < best.0 {
-                best = (d, k);
-            }
-        }
-        id = best.1;
-    }
-    id
-}
-
 /// The corners of every leaf, per patch.
 fn leaf_corners(h: &Hierarchy, np: usize) -> Vec<PatchInput> {
     let mut inputs = vec![PatchInput::default(); np];
@@ -666,7 +542,7 @@ fn uniform_points(scene: &Scene, spacing: f64) -> Vec<PatchInput> {
             for i in 0..=nu {
                 for j in 0..=nv {
                     let x = vs[0] + (u0 + i as f64 * spacing) * u + (v0 + j as f64 * spacing) * v;
-                    if outside(vs, patch.normal, x) < -0.25 * spacing {
+                    if outside_polygon(vs, patch.normal, x) < -0.25 * spacing {
                         points.push(x);
                     }
                 }

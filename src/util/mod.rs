@@ -1,3 +1,7 @@
-//! Domain-free helpers: progress reporting.
+//! Domain-free helpers: geometry, disjoint sets, named tolerances and
+//! progress reporting. Nothing here knows of scenes, patches or light.
 
+pub mod geometry;
 pub mod progress;
+pub mod tolerance;
+pub mod union_find;

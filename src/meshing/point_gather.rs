@@ -1,0 +1,303 @@
+//! The final gather: the radiosity at any point of a solved scene, from
+//! the links of the leaf that holds the point and of its ancestors, each
+//! source's exact point-to-polygon form factor taken from the point
+//! itself, and the emitters' direct light gathered at the point with its
+//! own visibility rays.
+//!
+//! Owns: [`point_radiosity`] (one point, one leaf), [`PointEvaluator`]
+//! (any point of a patch: finds the leaf, chooses the emitters gathered
+//! directly) and [`dark_emitters`] (emitters the solution shows hidden
+//! from a whole patch).
+//!
+//! Invariants: a value depends only on the solution, the point, the seed
+//! and the leaf (rays are seeded per leaf and source), never on the thread
+//! count or the order of evaluation; values are finite and, from
+//! [`PointEvaluator`], non-negative.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::formfactor::form_factor_point_polygon;
+use crate::hierarchical::HierarchicalSolution;
+use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
+use crate::hierarchical::link::weighted_visibility;
+use crate::sampling::{PolygonSampler, pair_stream, stratified};
+use crate::scene::Scene;
+use crate::util::geometry::outside_polygon;
+use crate::visibility::TriangleBvh;
+
+/// Visibility rays per partly visible link in [`point_radiosity`].
+pub const POINT_RAYS: usize = 8;
+
+/// A partly visible link whose light at a point, ρ F B, is below this
+/// fraction of the brightness threshold `bf_eps` keeps its own visible
+/// fraction in [`point_radiosity`]: the point's rays could move the value
+/// by less than that.
+pub const DIM_LINK_FRACTION: f64 = 0.2;
+
+/// Visibility rays per emitter patch for the direct light at a point...
+pub const DIRECT_RAYS: usize = 64;
+
+/// ... and when some but not all of them were blocked.
+pub const PENUMBRA_RAYS: usize = 256;
+
+/// Which links of the final gather cast their own visibility rays from
+/// the point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LinkRays {
+    /// Only partly visible links bright enough to matter
+    /// ([`DIM_LINK_FRACTION`]); the others keep their visible fraction.
+    #[default]
+    PartlyVisible,
+    /// Every link: a link's visibility, whole or none, holds for its
+    /// receiver as sampled, not for every point of it (a point just
+    /// inside an occluder's footprint).
+    Every,
+}
+
+/// How [`point_radiosity`] gathers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PointGather<'a> {
+    /// Which links cast rays from the point.
+    pub link_rays: LinkRays,
+    /// Emitter patches whose emission is gathered at the point itself
+    /// (exact form factor, [`DIRECT_RAYS`] rays, [`PENUMBRA_RAYS`] in a
+    /// penumbra) rather than through the
+    /// links, which then carry only the emitters' reflected light: a
+    /// link's visibility is an average over its receiver, wrong at points
+    /// in a penumbra, and a fully occluded link is not kept at all. Either
+    /// empty or every emitter patch of the scene.
+    pub direct: &'a [u32],
+    /// Per patch, the `direct` emitters (bit i for `direct[i]`) from which
+    /// the solution brings no light to any part of the patch
+    /// ([`dark_emitters`]): at a point there, [`PROBE_RAYS`] rays go
+    /// first, and when all are blocked the emitter counts as hidden.
+    /// Empty: none.
+    pub dark: &'a [u64],
+}
+
+/// Rays that confirm an emitter the solution found hidden from a whole
+/// patch, in [`point_radiosity`] (see [`PointGather::dark`]).
+pub const PROBE_RAYS: usize = 16;
+
+/// For each patch, the emitters among `direct` (at most 64, bit i for
+/// `direct[i]`) that no link of the solution carrying light joins to the
+/// patch: no element link on any of its elements with a source on the
+/// emitter, no cluster link whose source holds it.
+pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u32]) -> Vec<u64> {
+    let n = scene.patches.len();
+    let mut bit = vec![0u64; n];
+    for (i, &k) in direct.iter().enumerate() {
+        bit[k as usize] |= 1 << i;
+    }
+    let h = &solution.hierarchy;
+    let mut lit = match &solution.clusters {
+        Some(c) => c.emitters_lighting(direct),
+        None => vec![0; n],
+    };
+    let per_element: Vec<u64> = solution
+        .links
+        .par_iter()
+        .with_min_len(256)
+        .map(|ls| {
+            ls.iter()
+                .filter(|l| l.coupling() > 0.0)
+                .map(|l| bit[h.get(l.source).patch as usize])
+                .fold(0, |a, b| a | b)
+        })
+        .collect();
+    for (e, mask) in h.elements.iter().zip(per_element) {
+        lit[e.patch as usize] |= mask;
+    }
+    let all = if direct.len() == 64 {
+        u64::MAX
+    } else {
+        (1u64 << direct.len()) - 1
+    };
+    lit.into_iter().map(|m| all & !m).collect()
+}
+
+/// Radiosity at point `x` of leaf `leaf` by a final gather over the links
+/// of the leaf and its ancestors: each link's source contributes its exact
+/// point-to-polygon form factor from `x` (not the link's mean over its
+/// receiver) times its radiosity, and, for a partly visible link not too
+/// dim to matter ([`DIM_LINK_FRACTION`]), the kernel-weighted visible
+/// fraction of [`POINT_RAYS`] rays from `x` (seeded by `seed`, the leaf
+/// and the source: deterministic). `gather`
+/// says which links cast rays and which emitters are gathered directly.
+/// `x` is moved a millionth of the way toward the leaf's centroid first,
+/// so that a point on an edge takes its value from inside the leaf.
+pub fn point_radiosity(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    solution: &HierarchicalSolution,
+    leaf: ElementId,
+    x: DVec3,
+    seed: u64,
+    gather: PointGather,
+) -> DVec3 {
+    let h = &solution.hierarchy;
+    let e = h.get(leaf);
+    let patch = &scene.patches[e.patch as usize];
+    let x = x + 1e-6 * (e.centroid() - x);
+    // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
+    let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
+        let mut rng = pair_stream(seed, leaf.0, stream);
+        let sampler = PolygonSampler::new(polygon);
+        let targets = stratified(n, &mut rng)
+            .into_iter()
+            .map(|t| (x, sampler.point(t)));
+        let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
+        (total > 0.0).then(|| seen / total)
+    };
+    let dim_light = DIM_LINK_FRACTION * solution.thresholds.bf_eps;
+    let mut irradiance = DVec3::ZERO;
+    let dark = gather.dark.get(e.patch as usize).copied().unwrap_or(0);
+    for (i, &k) in gather.direct.iter().enumerate() {
+        let emitter = &scene.patches[k as usize];
+        if !((x - emitter.corners[0]).dot(emitter.normal) > 0.0) {
+            continue;
+        }
+        let f = form_factor_point_polygon(x, patch.normal, emitter.vertices());
+        if f > 0.0 {
+            // Streams above the element ids: patch k's rays.
+            let stream = u32::MAX - k;
+            if dark >> i & 1 == 1
+                && visible(emitter.vertices(), emitter.normal, PROBE_RAYS, stream) == Some(0.0)
+            {
+                continue;
+            }
+            let mut v = visible(emitter.vertices(), emitter.normal, DIRECT_RAYS, stream);
+            if v.is_some_and(|v| v > 0.0 && v < 1.0) {
+                // In a penumbra: a finer estimate.
+                v = visible(emitter.vertices(), emitter.normal, PENUMBRA_RAYS, stream);
+            }
+            irradiance += f * v.unwrap_or(0.0) * emitter.emission;
+        }
+    }
+    if let Some(c) = solution.cluster_irradiance.get(e.patch as usize) {
+        irradiance += *c;
+        if !gather.direct.is_empty() {
+            irradiance -= solution.cluster_direct[e.patch as usize];
+        }
+    }
+    let mut id = Some(leaf);
+    while let Some(k) = id {
+        for l in &solution.links[k.index()] {
+            let s = h.get(l.source);
+            let source = &scene.patches[s.patch as usize];
+            if !((x - s.corners[0]).dot(source.normal) > 0.0) {
+                continue;
+            }
+            let mut b = s.exposed_radiosity;
+            if !gather.direct.is_empty() {
+                b -= source.emission;
+            }
+            if b.max_element() <= 0.0 {
+                continue;
+            }
+            let f = form_factor_point_polygon(x, patch.normal, s.vertices());
+            if !(f > 0.0) {
+                continue;
+            }
+            let dim = (patch.reflectance * f * b).max_element() < dim_light;
+            let v = if gather.link_rays == LinkRays::Every || (l.partly_visible() && !dim) {
+                visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
+                    .unwrap_or(l.visibility())
+            } else {
+                l.visibility()
+            };
+            irradiance += f * v * b;
+        }
+        id = h.get(k).parent();
+    }
+    patch.emission + patch.reflectance * irradiance
+}
+
+/// Emitter patches whose light is gathered at each point rather than
+/// through the links, at most: beyond, the cost per vertex would grow with
+/// the emitter count, and the links carry the direct light too.
+pub const MAX_DIRECT_EMITTERS: usize = 64;
+
+/// Radiosity at any point of a solved scene: [`point_radiosity`] from the
+/// leaf holding the point, clamped at zero, with the direct light of up to
+/// [`MAX_DIRECT_EMITTERS`] emitter patches gathered at the point.
+pub struct PointEvaluator<'a> {
+    scene: &'a Scene,
+    bvh: &'a TriangleBvh,
+    solution: &'a HierarchicalSolution,
+    seed: u64,
+    direct: Vec<u32>,
+    /// [`PointGather::dark`].
+    dark: Vec<u64>,
+}
+
+impl<'a> PointEvaluator<'a> {
+    pub fn new(
+        scene: &'a Scene,
+        bvh: &'a TriangleBvh,
+        solution: &'a HierarchicalSolution,
+        seed: u64,
+    ) -> Self {
+        let mut direct: Vec<u32> = (0..scene.patches.len() as u32)
+            .filter(|&p| scene.patches[p as usize].is_emitter())
+            .collect();
+        if direct.len() > MAX_DIRECT_EMITTERS {
+            direct.clear();
+        }
+        let dark = dark_emitters(scene, solution, &direct);
+        PointEvaluator {
+            scene,
+            bvh,
+            solution,
+            seed,
+            direct,
+            dark,
+        }
+    }
+
+    /// The emitter patches gathered at each point (empty beyond
+    /// [`MAX_DIRECT_EMITTERS`]).
+    pub fn direct_emitters(&self) -> &[u32] {
+        &self.direct
+    }
+
+    /// The radiosity at `x` on patch `patch`, `link_rays` saying which
+    /// links cast their own rays from `x`.
+    pub fn value(&self, patch: usize, x: DVec3, link_rays: LinkRays) -> DVec3 {
+        let leaf = locate(&self.solution.hierarchy, self.scene, patch, x);
+        let gather = PointGather {
+            link_rays,
+            direct: &self.direct,
+            dark: &self.dark,
+        };
+        point_radiosity(
+            self.scene,
+            self.bvh,
+            self.solution,
+            leaf,
+            x,
+            self.seed,
+            gather,
+        )
+        .max(DVec3::ZERO)
+    }
+}
+
+/// The leaf of `patch`'s quadtree holding `x`: from the root, the child
+/// that `x` is least outside of (the first such, on a shared edge).
+fn locate(h: &Hierarchy, scene: &Scene, patch: usize, x: DVec3) -> ElementId {
+    let normal = scene.patches[patch].normal;
+    let mut id = h.root(patch);
+    while let Some(kids) = h.get(id).children() {
+        let mut best = (f64::INFINITY, kids[0]);
+        for k in kids {
+            let d = outside_polygon(h.get(k).vertices(), normal, x);
+            if d < best.0 {
+                best = (d, k);
+            }
+        }
+        id = best.1;
+    }
+    id
+}
