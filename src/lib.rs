@@ -18,6 +18,9 @@ pub mod discontinuity;
 pub mod formfactor;
 pub mod hierarchical;
 pub mod lab;
+
+#[doc(hidden)]
+pub mod fuzz;
 pub mod load;
 pub mod mesh;
 pub mod meshing;

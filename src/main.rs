@@ -29,6 +29,7 @@ use nusselt::render::RenderSettings;
 use nusselt::render::view::{View, ViewOverrides};
 use nusselt::report::Report;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -786,7 +787,7 @@ fn run_formfactors(args: FormFactorArgs) -> Result<()> {
         (None, _) => f64::INFINITY,
     };
     let mesh = nusselt::classic::uniform::UniformMesh::new(&scene, element_size);
-    let bvh = pipeline::scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &progress)?;
     let pairs = nusselt::classic::surfaces::surface_form_factors(&scene, &mesh, &matrix);
     let mut out = String::from("from,to,form_factor,reverse,reciprocity_error,row_sum\n");
@@ -834,9 +835,9 @@ fn run_chart(args: ChartArgs) -> Result<()> {
     let runs = args
         .reports
         .iter()
-        .map(|p| nusselt::lab::chart::read_convergence(p))
+        .map(|p| nusselt::lab::convergence::read_convergence(p))
         .collect::<nusselt::Result<Vec<_>>>()?;
-    let charts = nusselt::lab::chart::convergence_charts(&runs)?;
+    let charts = nusselt::lab::convergence::convergence_charts(&runs)?;
     let mut set = OutputSet::create(&args.output)?;
     for chart in &charts {
         set.stage(&format!("{}.svg", chart.stem), chart.images.svg.as_bytes())?;

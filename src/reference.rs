@@ -265,12 +265,7 @@ struct Tracer<'a> {
 
 impl<'a> Tracer<'a> {
     fn new(scene: &'a Scene, max_bounces: Option<u32>) -> Result<Tracer<'a>> {
-        let occluders: Vec<[glam::Vec3; 3]> = scene
-            .triangles
-            .iter()
-            .map(|t| t.positions.map(|p| p.as_vec3()))
-            .collect();
-        let bvh = TriangleBvh::new(&occluders, scene.diagonal());
+        let bvh = TriangleBvh::of_scene(scene);
         let normals = scene
             .triangles
             .iter()

@@ -23,6 +23,8 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
+use crate::scene::Scene;
+
 /// Hits closer than this fraction of the scene diagonal to a segment's
 /// endpoints do not count as occlusion.
 pub const ENDPOINT_GAP: f64 = 1e-5;
@@ -79,6 +81,18 @@ impl TriangleBvh {
             endpoint_gap: ENDPOINT_GAP * diagonal,
             build_time: start.elapsed(),
         }
+    }
+
+    /// The occluder BVH of a scene: every input triangle, at the scene's
+    /// length scale. The one way the pipeline, the path tracer and the
+    /// tools build it.
+    pub fn of_scene(scene: &Scene) -> TriangleBvh {
+        let occluders: Vec<[Vec3; 3]> = scene
+            .triangles
+            .iter()
+            .map(|t| t.positions.map(|p| p.as_vec3()))
+            .collect();
+        TriangleBvh::new(&occluders, scene.diagonal())
     }
 
     /// Number of triangles.

@@ -8,11 +8,12 @@ use nusselt::hierarchical::{
     solve_hierarchical_guided,
 };
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::{SolveRun, SolveSettings, scene_bvh, solve};
+use nusselt::pipeline::{SolveRun, SolveSettings, solve};
 use nusselt::render::RenderSettings;
 use nusselt::render::view::ViewOverrides;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 use crate::util::{assert_user_error, nusselt, on_threads};
 
@@ -230,7 +231,7 @@ fn no_budget_reached_reports_null() {
 #[test]
 fn budgeted_solve_is_thread_independent() {
     let scene = cornell();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let hs = HierarchicalSettings {
         accuracy: Accuracy {
             max_elements: Some(600),

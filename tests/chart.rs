@@ -4,10 +4,8 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use nusselt::lab::chart::{
-    Axis, CHART_SIZE, LineChart, Series, convergence_charts, draw_line_chart, read_convergence,
-    run_labels,
-};
+use nusselt::lab::chart::{Axis, CHART_SIZE, LineChart, Series, draw_line_chart};
+use nusselt::lab::convergence::{convergence_charts, read_convergence, run_labels};
 use nusselt::report::{HistoryEntry, Report};
 
 use crate::util::{assert_user_error, nusselt};

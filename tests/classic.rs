@@ -64,7 +64,7 @@ pub fn furnace_box_rgb(size: DVec3, le: DVec3, rho: f64) -> Scene {
 }
 
 fn bvh(scene: &Scene) -> TriangleBvh {
-    nusselt::pipeline::scene_bvh(scene)
+    nusselt::visibility::TriangleBvh::of_scene(scene)
 }
 
 /// The matrix of `mesh` by exact (unoccluded) polygon-to-polygon

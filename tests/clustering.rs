@@ -10,9 +10,9 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::point_gather::dark_emitters;
-use nusselt::pipeline::scene_bvh;
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 use super::scenes::scenegen::write_scale;
 use super::util;
@@ -154,7 +154,12 @@ fn solve(scene: &Scene, clustering: Clustering, accuracy: Accuracy) -> Hierarchi
         clustering,
         ..HierarchicalSettings::default()
     };
-    let s = solve_hierarchical(scene, &scene_bvh(scene), &settings, &Progress::hidden());
+    let s = solve_hierarchical(
+        scene,
+        &TriangleBvh::of_scene(scene),
+        &settings,
+        &Progress::hidden(),
+    );
     s.hierarchy.validate(scene).unwrap();
     assert_eq!(s.clusters.is_some(), clustering == Clustering::On);
     s
@@ -387,7 +392,15 @@ fn cluster_oracle_accepts_blocked_pairs_early_and_opens_visible_ones_cheaply() {
         let (scene, r, s) = tiles_under_lamp(slab);
         let clusters = Clusters::new(&scene);
         let elements = Hierarchy::new(&scene).elements;
-        clusters.examine(&scene, &scene_bvh(&scene), &elements, r, s, eps, 7)
+        clusters.examine(
+            &scene,
+            &TriangleBvh::of_scene(&scene),
+            &elements,
+            r,
+            s,
+            eps,
+            7,
+        )
     };
     let (mut band, mut visible_from, mut blocked_from) = (0, f64::INFINITY, f64::INFINITY);
     for i in 0..60 {

@@ -11,7 +11,6 @@ use nusselt::discontinuity::{
     Discontinuities, DiscontinuitySettings, Segment, SegmentKind, discontinuity_segments,
 };
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::scene_bvh;
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
 use nusselt::visibility::TriangleBvh;
 
@@ -126,7 +125,7 @@ fn square_over_square_gives_the_analytic_umbra_and_penumbra() {
     ]);
     let floor = scene.patches.iter().position(|p| p.surface == 0).unwrap() as u32;
     let emitter = scene.patches.iter().find(|p| p.is_emitter()).unwrap();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, _) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
     assert!(d.segments.iter().all(|s| s.kind != SegmentKind::Contact));
@@ -192,14 +191,14 @@ fn square_over_square_gives_the_analytic_umbra_and_penumbra() {
 fn unoccluded_emitters_give_no_segments() {
     // A light over a floor, nothing between.
     let scene = squares(&[(0.0, 2.0, true, false), (1.0, 0.5, false, true)]);
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, _) = run(&scene, &bvh);
     assert!(d.segments.is_empty(), "{:?}", d.segments);
     assert_eq!(d.stats.luminaires, 1);
     // A convex box whose every face emits: no silhouettes, and its edges
     // lie on patch boundaries.
     let scene = furnace_box(DVec3::new(1.0, 2.0, 3.0), 1.0, 0.5);
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, _) = run(&scene, &bvh);
     assert!(d.segments.is_empty(), "{:?}", d.segments);
     assert_eq!(d.stats.wedges, 0);
@@ -215,7 +214,7 @@ fn load(name: &str) -> Scene {
 #[test]
 fn cornell_floor_gets_block_contacts_and_penumbrae() {
     let scene = load("cornell-box.gltf");
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, secs) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
     let count = |k: SegmentKind| d.segments.iter().filter(|s| s.kind == k).count();
@@ -296,7 +295,7 @@ fn cornell_floor_gets_block_contacts_and_penumbrae() {
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
     let scene = load("cornell-box.gltf");
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let settings = DiscontinuitySettings::default();
     let with = |threads: usize| {
         crate::util::on_threads(threads, || discontinuity_segments(&scene, &bvh, &settings))
@@ -319,7 +318,7 @@ fn three_rooms_segments_are_identical_for_one_and_two_threads() {
     let settings = DiscontinuitySettings::default();
     let with = |threads: usize| {
         crate::util::on_threads(threads, || {
-            discontinuity_segments(&scene, &scene_bvh(&scene), &settings)
+            discontinuity_segments(&scene, &TriangleBvh::of_scene(&scene), &settings)
         })
     };
     let bits = |d: &Discontinuities| -> Vec<[u64; 8]> {
@@ -359,7 +358,7 @@ fn three_rooms_segments_are_identical_for_one_and_two_threads() {
 #[test]
 fn budget_keeps_contacts_and_the_heaviest_segments() {
     let scene = load("cornell-box.gltf");
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let full = discontinuity_segments(&scene, &bvh, &DiscontinuitySettings::default());
     let contacts = full
         .segments
@@ -408,7 +407,7 @@ fn budget_keeps_contacts_and_the_heaviest_segments() {
 #[test]
 fn three_rooms_stays_affordable() {
     let scene = load("three-rooms.gltf");
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, secs) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
     let count = |k: SegmentKind| d.segments.iter().filter(|s| s.kind == k).count();
@@ -434,7 +433,7 @@ fn three_rooms_stays_affordable() {
 fn block_winding_does_not_change_floor_segments() {
     let scene = load("cornell-box.gltf");
     let floor_segments = |scene: &Scene| {
-        let bvh = scene_bvh(scene);
+        let bvh = TriangleBvh::of_scene(scene);
         let d = discontinuity_segments(scene, &bvh, &DiscontinuitySettings::default());
         let mut v: Vec<[f64; 6]> = d
             .segments
@@ -545,7 +544,7 @@ fn blocked_wedges_end_on_the_first_surface() {
         vec![],
     )
     .unwrap();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let (d, _) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
     let on = |s: &Segment, surface: u32, x: f64| {

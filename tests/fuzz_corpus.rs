@@ -90,9 +90,7 @@ fn triangulate_corpus_and_regressions_validate() {
     let mut failed = Vec::new();
     for file in corpus.iter().chain(&regressions) {
         let data = std::fs::read(file).expect("readable corpus file");
-        match catch_unwind(AssertUnwindSafe(|| {
-            nusselt::meshing::triangulate::fuzz_triangulate(&data)
-        })) {
+        match catch_unwind(AssertUnwindSafe(|| nusselt::fuzz::fuzz_triangulate(&data))) {
             Ok(Ok(())) => {}
             Ok(Err(e)) => failed.push(format!("{}: {e}", file.display())),
             Err(_) => failed.push(format!("{}: panicked", file.display())),
@@ -104,7 +102,7 @@ fn triangulate_corpus_and_regressions_validate() {
 /// Runs the `pipeline` fuzz target's body on `data`: a panic or a broken
 /// invariant becomes an `Err` naming it.
 fn pipeline_body(data: &[u8]) -> Result<(), String> {
-    match catch_unwind(AssertUnwindSafe(|| nusselt::pipeline::fuzz_pipeline(data))) {
+    match catch_unwind(AssertUnwindSafe(|| nusselt::fuzz::fuzz_pipeline(data))) {
         Ok(result) => result,
         Err(_) => Err("panicked".into()),
     }
@@ -171,9 +169,7 @@ fn fuzz_bodies_survive_pseudo_random_inputs() {
     let tri_seeds = seeds("corpus/triangulate");
     for k in 0..2000 {
         let data = input(&mut rng, &tri_seeds);
-        match catch_unwind(AssertUnwindSafe(|| {
-            nusselt::meshing::triangulate::fuzz_triangulate(&data)
-        })) {
+        match catch_unwind(AssertUnwindSafe(|| nusselt::fuzz::fuzz_triangulate(&data))) {
             Ok(Ok(())) => {}
             Ok(Err(e)) => failed.push(format!("triangulate #{k}: {e} on {data:?}")),
             Err(_) => failed.push(format!("triangulate #{k}: panicked on {data:?}")),

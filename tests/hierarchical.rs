@@ -12,9 +12,9 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::leaf::{VertexValues, leaf_output_mesh, output_mesh};
-use nusselt::pipeline::scene_bvh;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 use crate::classic::furnace_box;
 
@@ -24,7 +24,7 @@ fn cornell() -> Scene {
 }
 
 fn run(scene: &Scene, settings: &HierarchicalSettings) -> HierarchicalSolution {
-    let bvh = scene_bvh(scene);
+    let bvh = TriangleBvh::of_scene(scene);
     let s = solve_hierarchical(scene, &bvh, settings, &Progress::hidden());
     s.hierarchy.validate(scene).unwrap();
     for (r, links) in s.links.iter().enumerate() {
@@ -81,7 +81,7 @@ fn furnace_within_the_stated_tolerance() {
             .sum();
         let phi = scene.emitted_power().x;
         let enclosure = (radiated - phi / (1.0 - rho)).abs() / (phi / (1.0 - rho));
-        let bvh = scene_bvh(&scene);
+        let bvh = TriangleBvh::of_scene(&scene);
         let mesh = output_mesh(&scene, &bvh, &s, VertexValues::PointGather { seed: 1 });
         let vertex: Vec<f64> = mesh
             .radiosity
@@ -115,7 +115,7 @@ fn furnace_within_the_stated_tolerance() {
 /// 16 rays per pair, Jacobi to 1e-9).
 pub(crate) fn uniform_reference(scene: &Scene, fraction: f64) -> Vec<DVec3> {
     let mesh = UniformMesh::new(scene, scene.diagonal() * fraction);
-    let bvh = scene_bvh(scene);
+    let bvh = TriangleBvh::of_scene(scene);
     let settings = MatrixSettings {
         kernel: Kernel::PointPolygon,
         visibility_rays: 16,
@@ -329,7 +329,7 @@ fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
     use nusselt::hierarchical::link::evaluate_link;
 
     let scene = cornell();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let h = Hierarchy::new(&scene);
     let floor = h.root(0);
     let face = h.root(17);
@@ -427,7 +427,7 @@ fn visibility_rays_follow_what_the_decision_needs() {
     };
 
     let scene = cornell();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let h = Hierarchy::new(&scene);
     let light = scene.patches.iter().position(|p| p.is_emitter()).unwrap();
     let (floor, source) = (h.root(0), h.root(light));

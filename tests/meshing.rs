@@ -15,7 +15,6 @@ use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::meshing::point_gather::{LinkRays, PointEvaluator};
 use nusselt::meshing::{MeshMode, MeshSettings, MeshStats, build_mesh};
-use nusselt::pipeline::scene_bvh;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
@@ -41,7 +40,7 @@ pub struct Solved {
 
 pub fn solved_cornell(guided: bool) -> Solved {
     let scene = cornell();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let guide = discontinuity_segments(&scene, &bvh, &DiscontinuitySettings::default())
         .by_patch(scene.patches.len());
     let solution = if guided {

@@ -525,10 +525,10 @@ fn mesh_modes_at_equal_vertex_count() {
         HierarchicalSettings, HierarchicalSolution, solve_hierarchical_guided,
     };
     use nusselt::meshing::{MeshMode, MeshSettings, build_mesh};
-    use nusselt::pipeline::scene_bvh;
+    use nusselt::visibility::TriangleBvh;
 
     let (scene, pen) = load();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let guide = discontinuity_segments(&scene, &bvh, &DiscontinuitySettings::default())
         .by_patch(scene.patches.len());
     let solve = |accuracy: Accuracy, guided: bool| {

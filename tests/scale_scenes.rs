@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use glam::DVec3;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::scene_bvh;
+use nusselt::visibility::TriangleBvh;
 
 use super::scenes::scenegen::{readme::triangle_count, scale, write_scale};
 use super::scenes::{
@@ -83,7 +83,7 @@ fn bundled_office_loads_without_dropping_anything() {
         );
     }
     assert_eq!(scene.cameras.len(), 1);
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     assert_eq!(bvh.len(), generated);
     // The camera's view ray meets the scene.
     let cam = &scene.cameras[0];
@@ -178,7 +178,7 @@ fn office_furniture_stays_in_its_room_without_overlaps() {
 #[test]
 fn office_rays_from_open_space_meet_front_faces_and_the_camera_sees_a_lit_room() {
     let scene = load_scene(&scenes_dir().join(FILE), &LoadOptions::default()).unwrap();
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     // The node a ray first meets, and whether it meets its front.
     let first = |origin: DVec3, dir: DVec3| {
         let hit = bvh

@@ -20,12 +20,13 @@ use nusselt::classic::solve::{ClassicMethod, Convergence, System};
 use nusselt::classic::uniform::UniformMesh;
 use nusselt::hierarchical::{Accuracy, HierarchicalSettings, solve_hierarchical};
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::{Method, SolveRun, SolveSettings, scene_bvh, solve};
+use nusselt::pipeline::{Method, SolveRun, SolveSettings, solve};
 use nusselt::render::RenderSettings;
 use nusselt::render::view::ViewOverrides;
 use nusselt::report::Report;
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 use crate::closed_forms::c14;
 
@@ -322,7 +323,7 @@ fn shared_edge_form_factor_matches_its_closed_form() {
     assert!(scene.patches[receiver as usize].area > 0.999);
 
     // The hierarchy: the flux onto the receiver's leaves, and the report.
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     for (accuracy, tol) in [(Accuracy::preview(), 0.01), (Accuracy::default(), 0.005)] {
         let settings = HierarchicalSettings {
             accuracy,

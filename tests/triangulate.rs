@@ -325,7 +325,7 @@ fn random_fuzz_inputs_validate() {
     for case in 0..cases {
         let len = rng.random_range(1..200);
         let data: Vec<u8> = (0..len).map(|_| rng.random()).collect();
-        if let Err(e) = nusselt::meshing::triangulate::fuzz_triangulate(&data) {
+        if let Err(e) = nusselt::fuzz::fuzz_triangulate(&data) {
             panic!("case {case} ({data:?}): {e}");
         }
     }

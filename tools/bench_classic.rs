@@ -20,8 +20,8 @@ use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
 use nusselt::classic::uniform::UniformMesh;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::scene_bvh;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 const METHODS: [(&str, ClassicMethod); 4] = [
     ("direct", ClassicMethod::Direct),
@@ -38,7 +38,7 @@ fn child(scene_path: &str, fraction: f64, method: &str) -> anyhow::Result<()> {
         .find(|(n, _)| *n == method)
         .ok_or_else(|| anyhow::anyhow!("unknown method {method}"))?;
     let mesh = UniformMesh::new(&scene, fraction * scene.diagonal());
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let t = Instant::now();
     let settings = MatrixSettings {
         kernel: Kernel::PointPolygon,

@@ -27,8 +27,8 @@ use std::time::Instant;
 use nusselt::hierarchical::{Accuracy, HierarchicalSettings, Preset, solve_hierarchical};
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::leaf::leaf_output_mesh;
-use nusselt::pipeline::scene_bvh;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 const DEFAULT_SCENES: [&str; 2] = ["scenes/cornell-box.gltf", "scenes/three-rooms.gltf"];
 const DEFAULT_PRESETS: &str = "preview,default,high";
@@ -73,7 +73,7 @@ fn parse_preset(name: &str) -> anyhow::Result<Preset> {
 fn child(scene_path: &str, preset_name: &str) -> anyhow::Result<()> {
     let preset = parse_preset(preset_name)?;
     let scene = load_scene(Path::new(scene_path), &LoadOptions::default())?;
-    let bvh = scene_bvh(&scene);
+    let bvh = TriangleBvh::of_scene(&scene);
     let settings = HierarchicalSettings {
         accuracy: Accuracy::preset(preset),
         ..HierarchicalSettings::default()

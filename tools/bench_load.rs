@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use bench_common::peak_rss_mib;
 use nusselt::load::{LoadOptions, load_scene};
-use nusselt::pipeline::scene_bvh;
+use nusselt::visibility::TriangleBvh;
 
 fn main() -> anyhow::Result<()> {
     let scenes: Vec<PathBuf> = std::env::args_os().skip(1).map(PathBuf::from).collect();
@@ -32,7 +32,7 @@ fn main() -> anyhow::Result<()> {
         let scene = load_scene(&path, &LoadOptions::default())?;
         let load = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let bvh = scene_bvh(&scene);
+        let bvh = TriangleBvh::of_scene(&scene);
         let build = start.elapsed().as_secs_f64();
         drop(bvh);
         let emitting = scene

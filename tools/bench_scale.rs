@@ -22,8 +22,8 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::leaf::{VertexValues, output_mesh};
-use nusselt::pipeline::scene_bvh;
 use nusselt::util::progress::Progress;
+use nusselt::visibility::TriangleBvh;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum Level {
@@ -88,7 +88,7 @@ fn main() -> anyhow::Result<()> {
         let scene = load_scene(path, &LoadOptions::default())?;
         let load = start.elapsed().as_secs_f64();
         let t = Instant::now();
-        let bvh = scene_bvh(&scene);
+        let bvh = TriangleBvh::of_scene(&scene);
         let build = t.elapsed().as_secs_f64();
         let s = solve_hierarchical(&scene, &bvh, &settings, &Progress::hidden());
         let mesh = if args.output_mesh {

@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use glam::{DVec2, DVec3, Vec3};
+use glam::{DVec2, DVec3};
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::sampling::{point_in_polygon, stream};
 use nusselt::visibility::TriangleBvh;
@@ -33,12 +33,7 @@ fn main() -> anyhow::Result<()> {
     println!("|---|---:|---:|---:|---:|---:|");
     for path in scenes {
         let scene = load_scene(&path, &LoadOptions::default())?;
-        let tris: Vec<[Vec3; 3]> = scene
-            .triangles
-            .iter()
-            .map(|t| t.positions.map(|p| p.as_vec3()))
-            .collect();
-        let bvh = TriangleBvh::new(&tris, scene.diagonal());
+        let bvh = TriangleBvh::of_scene(&scene);
         let areas: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
         let total: f64 = areas.iter().sum();
         let mut rng = stream(42, 0);
@@ -71,7 +66,7 @@ fn main() -> anyhow::Result<()> {
         println!(
             "| {} | {} | {:.1} | {:.3} | {:.2} | {:.2} |",
             path.display(),
-            tris.len(),
+            bvh.len(),
             bvh.build_time().as_secs_f64() * 1e3,
             visible as f64 / RAYS as f64,
             rates[0],

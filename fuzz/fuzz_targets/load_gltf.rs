@@ -6,5 +6,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = nusselt::load::load_scene_from_slice(data, None, &Default::default());
+    nusselt::fuzz::fuzz_load(data);
 });

@@ -9,7 +9,7 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Err(e) = nusselt::pipeline::fuzz_pipeline(data) {
+    if let Err(e) = nusselt::fuzz::fuzz_pipeline(data) {
         panic!("{e}");
     }
 });

@@ -7,7 +7,7 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Err(e) = nusselt::meshing::triangulate::fuzz_triangulate(data) {
+    if let Err(e) = nusselt::fuzz::fuzz_triangulate(data) {
         panic!("{e}");
     }
 });

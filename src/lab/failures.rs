@@ -41,6 +41,7 @@ use crate::render::frame::Frame;
 use crate::render::view::{View, ViewOverrides};
 use crate::scene::{Patch, Scene, Shape};
 use crate::util::progress::Progress;
+use crate::visibility::TriangleBvh;
 
 /// The table's view, samples and budgets.
 #[derive(Clone, Debug, PartialEq)]
@@ -345,7 +346,7 @@ pub struct Reference {
 /// samples, so it would dominate the error without saying anything about
 /// the solution.
 pub fn receiver_pixels(scene: &Scene, view: &View) -> Vec<bool> {
-    let bvh = pipeline::scene_bvh(scene);
+    let bvh = TriangleBvh::of_scene(scene);
     let (w, h) = (view.width as usize, view.height as usize);
     let sees_emitter: Vec<bool> = (0..w * h)
         .map(|i| {

@@ -3,5 +3,6 @@
 
 pub mod chart;
 pub mod compare;
+pub mod convergence;
 pub mod failures;
 pub mod study;

@@ -1,0 +1,160 @@
+//! The classic path of a solve: occluders, a uniform mesh, the dense
+//! form-factor matrix, a classic solver (with snapshots rendered as it
+//! goes), the output mesh and the render; and the report of each step.
+//!
+//! Invariant: the phases run in that order, each timed into the report;
+//! snapshot renders count as render time, not solve time.
+
+use std::time::Instant;
+
+use glam::DVec3;
+use serde_json::json;
+
+use super::{
+    DEFAULT_ELEMENT_FRACTION, SolveRun, SolveSettings, convergence_report, finish, new_report, secs,
+};
+use crate::classic::matrix::FormFactorMatrix;
+use crate::classic::solve::{ClassicMethod, System};
+use crate::classic::uniform::UniformMesh;
+use crate::error::Result;
+use crate::render::render;
+use crate::render::view::View;
+use crate::report::{Counts, Power};
+use crate::scene::Scene;
+use crate::util::progress::Progress;
+use crate::visibility::TriangleBvh;
+
+/// Solves `scene` with the classic `method` and renders its default view.
+pub(super) fn solve(
+    scene: &Scene,
+    settings: &SolveSettings,
+    method: ClassicMethod,
+    progress: &Progress,
+) -> Result<SolveRun> {
+    let start = Instant::now();
+    let mut report = new_report(scene, settings);
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+    let element_size = settings
+        .element_size
+        .unwrap_or(scene.diagonal() * DEFAULT_ELEMENT_FRACTION);
+    if !(element_size > 0.0 && element_size.is_finite()) {
+        return Err(crate::Error::Setting(format!(
+            "element size {element_size} must be positive"
+        )));
+    }
+
+    let t = Instant::now();
+    let bvh = TriangleBvh::of_scene(scene);
+    report.times.bvh = secs(t);
+
+    let t = Instant::now();
+    let mesh = UniformMesh::new(scene, element_size);
+    report.times.mesh = secs(t);
+
+    let t = Instant::now();
+    let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;
+    report.times.form_factors = secs(t);
+
+    // The solve, rendering the requested snapshots as it goes.
+    let t = Instant::now();
+    let (reflectance, emission, area) = mesh.element_values(scene);
+    let system = System {
+        matrix: &matrix,
+        reflectance: &reflectance,
+        emission: &emission,
+        area: &area,
+    };
+    let mut snapshots = Vec::new();
+    let mut snapshot_time = 0.0;
+    let mut observe = |iteration: usize, b: &[DVec3]| {
+        if settings.snapshots.contains(&iteration) {
+            let t = Instant::now();
+            let out = mesh.output_mesh(scene, b);
+            snapshots.push((
+                iteration,
+                render(&out, &view, &settings.render, &Progress::hidden()),
+            ));
+            snapshot_time += secs(t);
+        }
+    };
+    let solution = crate::classic::solve::solve(
+        &system,
+        method,
+        &settings.convergence,
+        settings.matrix.memory_budget,
+        &mut observe,
+    )?;
+    report.times.solve = secs(t) - snapshot_time;
+    report.times.render += snapshot_time;
+    drop(matrix);
+
+    let area = |i: usize| mesh.elements[i].area;
+    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
+        (0..mesh.elements.len()).map(f).sum::<DVec3>().to_array()
+    };
+    report.power = Power {
+        emitted: sum(&|i| emission[i] * area(i)),
+        absorbed: sum(&|i| (DVec3::ONE - reflectance[i]) * solution.irradiance[i] * area(i)),
+        radiated: sum(&|i| solution.radiosity[i] * area(i)),
+    };
+    report.convergence = convergence_report(
+        solution.converged,
+        settings.convergence.tolerance,
+        solution
+            .history
+            .iter()
+            .map(|h| (h.iteration, h.residual, h.seconds)),
+    );
+    if !solution.converged {
+        report.warnings.push(format!(
+            "{} did not reach the tolerance {} within {} iterations",
+            method.name(),
+            settings.convergence.tolerance,
+            settings.convergence.max_iterations
+        ));
+    }
+
+    let t = Instant::now();
+    let out = mesh.output_mesh(scene, &solution.radiosity);
+    report.times.output_mesh = secs(t);
+
+    let t = Instant::now();
+    let frame = render(&out, &view, &settings.render, progress);
+    report.times.render += secs(t);
+    // Snapshots asked for after the solver stopped show the final state.
+    let last = solution.history.len();
+    for &k in &settings.snapshots {
+        if k > last && !snapshots.iter().any(|(j, _)| *j == k) {
+            snapshots.push((k, frame.clone()));
+        }
+    }
+
+    report.counts = Counts {
+        input_triangles: scene.stats.input_triangles,
+        degenerate_dropped: scene.stats.degenerate_dropped,
+        merged_quads: scene.stats.merged_quads,
+        patches: scene.patches.len(),
+        elements: mesh.elements.len(),
+        leaves: mesh.elements.len(),
+        links: stats.nonzero_pairs,
+        visibility_rays: stats.visibility_rays,
+        memory_bytes: FormFactorMatrix::bytes_for(mesh.elements.len()),
+        output_vertices: out.vertex_count(),
+        output_triangles: out.triangles.len(),
+        clusters: 0,
+        cluster_links: 0,
+    };
+    report.max_row_sum = stats.max_row_sum;
+    report.mean_row_sum = stats.mean_row_sum;
+    report.settings = json!({
+        "method": method,
+        "element_size": element_size,
+        "matrix": settings.matrix,
+        "convergence": settings.convergence,
+        "render": settings.render,
+        "snapshots": settings.snapshots,
+        "width": view.width,
+        "height": view.height,
+    });
+    Ok(finish(report, view, out, frame, snapshots, start, settings))
+}

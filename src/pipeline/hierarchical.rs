@@ -1,0 +1,226 @@
+//! The hierarchical path of a solve: occluders, discontinuity segments
+//! (for that mesh mode), link, refine and solve [HSA91], the output mesh
+//! of the mode, the render; and the report of each step.
+//!
+//! Invariant: the phases run in that order, each timed into the report;
+//! snapshots of a hierarchical solve show the final state.
+
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+use serde_json::json;
+
+use super::{SolveRun, SolveSettings, convergence_report, finish, new_report, secs};
+use crate::discontinuity::discontinuity_segments;
+use crate::error::Result;
+use crate::hierarchical::{HierarchicalSettings, HierarchicalSolution, solve_hierarchical_guided};
+use crate::meshing::{MeshMode, MeshSettings, build_mesh};
+use crate::render::render;
+use crate::render::view::View;
+use crate::report::{Counts, ImportanceReport, Power, Report};
+use crate::scene::Scene;
+use crate::util::progress::Progress;
+use crate::visibility::TriangleBvh;
+
+/// Solves `scene` hierarchically and renders its default view.
+pub(super) fn solve(
+    scene: &Scene,
+    settings: &SolveSettings,
+    progress: &Progress,
+) -> Result<SolveRun> {
+    let start = Instant::now();
+    let mut report = new_report(scene, settings);
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+
+    let t = Instant::now();
+    let bvh = TriangleBvh::of_scene(scene);
+    report.times.bvh = secs(t);
+
+    // The discontinuity mesh's segments also guide the refinement.
+    let t = Instant::now();
+    let guide = if settings.mesh.mode == MeshMode::Discontinuity {
+        discontinuity_segments(scene, &bvh, &settings.discontinuity).by_patch(scene.patches.len())
+    } else {
+        Vec::new()
+    };
+    report.times.discontinuities = secs(t);
+
+    let mut hs = settings.hierarchical.clone();
+    if settings.importance {
+        hs.importance = Some(view_importance(scene, &bvh, &view));
+    }
+    let solution = solve_hierarchical_guided(scene, &bvh, &hs, &guide, progress);
+    report_solution(&mut report, scene, &hs, &solution);
+
+    let t = Instant::now();
+    let mesh_settings = MeshSettings {
+        seed: hs.seed,
+        ..settings.mesh.clone()
+    };
+    let (out, mesh_stats) = build_mesh(scene, &bvh, &solution, &guide, &mesh_settings)?;
+    report.times.output_mesh = secs(t);
+    report.mesh = Some(mesh_stats);
+
+    let t = Instant::now();
+    let frame = render(&out, &view, &settings.render, progress);
+    report.times.render += secs(t);
+    let mut snapshots = Vec::new();
+    for &k in &settings.snapshots {
+        if !snapshots.iter().any(|(j, _)| *j == k) {
+            snapshots.push((k, frame.clone()));
+        }
+    }
+
+    report.counts = Counts {
+        output_vertices: out.vertex_count(),
+        output_triangles: out.triangles.len(),
+        ..solution_counts(scene, &solution)
+    };
+    report.settings = settings_json(settings, &hs, &solution, &view);
+    Ok(finish(report, view, out, frame, snapshots, start, settings))
+}
+
+/// What the solve did, into the report: importance, phase times, power,
+/// convergence, and the warnings for a solve that stopped short.
+fn report_solution(
+    report: &mut Report,
+    scene: &Scene,
+    hs: &HierarchicalSettings,
+    solution: &HierarchicalSolution,
+) {
+    if let Some(seen) = &hs.importance {
+        let count = |f: &dyn Fn(usize) -> bool| (0..scene.patches.len()).filter(|&p| f(p)).count();
+        report.importance = Some(ImportanceReport {
+            patches_seen: count(&|p| seen[p] > 0.0),
+            patches_weighted: count(&|p| solution.importance.get(p).is_some_and(|&w| w > 0.01)),
+        });
+    }
+    report.times.linking = solution.times.linking;
+    report.times.refinement = solution.times.refinement;
+    report.times.solve = solution.times.solve;
+
+    let h = &solution.hierarchy;
+    let leaves: Vec<usize> = h.leaves().map(|id| id.index()).collect();
+    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
+        leaves.iter().map(|&i| f(i)).sum::<DVec3>().to_array()
+    };
+    let patch = |i: usize| &scene.patches[h.elements[i].patch as usize];
+    report.power = Power {
+        emitted: sum(&|i| patch(i).emission * h.elements[i].area),
+        absorbed: sum(&|i| {
+            (DVec3::ONE - patch(i).reflectance) * solution.irradiance[i] * h.elements[i].area
+        }),
+        radiated: sum(&|i| h.elements[i].radiosity * h.elements[i].area),
+    };
+    report.convergence = convergence_report(
+        solution.converged,
+        hs.tolerance,
+        solution
+            .history
+            .iter()
+            .map(|h| (h.iteration, h.residual, h.seconds)),
+    );
+    report.convergence.rounds = solution.rounds.clone();
+    if !solution.converged {
+        report.warnings.push(format!(
+            "hierarchical: the last solve did not reach the tolerance {} within {} iterations",
+            hs.tolerance, hs.max_iterations
+        ));
+    }
+    if let Some(hit) = &solution.budget {
+        report.warnings.push(hit.message());
+    }
+    report.budget = solution.budget;
+    if solution.rounds_exhausted {
+        report.warnings.push(format!(
+            "hierarchical: refinement stopped after {} rounds with links still above the threshold",
+            hs.accuracy.max_rounds
+        ));
+    }
+}
+
+/// The counts of the scene and the solution (the output mesh's are left
+/// for the caller).
+fn solution_counts(scene: &Scene, solution: &HierarchicalSolution) -> Counts {
+    let h = &solution.hierarchy;
+    Counts {
+        input_triangles: scene.stats.input_triangles,
+        degenerate_dropped: scene.stats.degenerate_dropped,
+        merged_quads: scene.stats.merged_quads,
+        patches: scene.patches.len(),
+        elements: h.len(),
+        leaves: h.leaf_count(),
+        links: solution.link_count(),
+        visibility_rays: solution.visibility_rays,
+        memory_bytes: solution.memory_bytes(),
+        output_vertices: 0,
+        output_triangles: 0,
+        clusters: solution.clusters.as_ref().map_or(0, |c| c.tree.len()),
+        cluster_links: solution.cluster_link_count(),
+    }
+}
+
+/// Every setting of the run, as `report.json` records it.
+fn settings_json(
+    settings: &SolveSettings,
+    hs: &HierarchicalSettings,
+    solution: &HierarchicalSolution,
+    view: &View,
+) -> serde_json::Value {
+    let th = &solution.thresholds;
+    json!({
+        "method": settings.method.name(),
+        "hierarchical": hs,
+        "mesh": settings.mesh,
+        "discontinuity": (settings.mesh.mode == MeshMode::Discontinuity)
+            .then_some(&settings.discontinuity),
+        "scaled_thresholds": {
+            "ff_eps": th.ff_eps,
+            "bf_eps": th.bf_eps,
+            "power_eps": th.power_eps,
+            "cluster_eps": th.cluster_eps,
+            "min_area": th.min_area,
+        },
+        "render": settings.render,
+        "snapshots": settings.snapshots,
+        "width": view.width,
+        "height": view.height,
+    })
+}
+
+/// Rays per side at most of [`view_importance`]'s grid.
+const IMPORTANCE_GRID: u32 = 256;
+
+/// The patches `view` sees directly: 1 for each patch hit first (on its
+/// front) by a ray of a grid over the image (at most [`IMPORTANCE_GRID`]
+/// rays a side, pixel centres), 0 for the others.
+pub fn view_importance(scene: &Scene, bvh: &TriangleBvh, view: &View) -> Vec<f32> {
+    let scale = (f64::from(IMPORTANCE_GRID) / f64::from(view.width.max(view.height))).min(1.0);
+    let (w, h) = (
+        ((f64::from(view.width) * scale).round() as u32).max(1),
+        ((f64::from(view.height) * scale).round() as u32).max(1),
+    );
+    let far = 4.0 * scene.diagonal() + view.eye.distance(0.5 * (scene.bounds.0 + scene.bounds.1));
+    let hits: Vec<Option<u32>> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (f64::from(i % w) + 0.5, f64::from(i / w) + 0.5);
+            let (eye, dir) = view.ray(x / scale, y / scale);
+            let hit = bvh.closest_hit(eye, dir, far)?;
+            let t = &scene.triangles[hit.triangle as usize];
+            let p = t.positions;
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+            if normal.dot(dir) < 0.0 {
+                Some(t.front_patch)
+            } else {
+                t.back_patch
+            }
+        })
+        .collect();
+    let mut seen = vec![0.0; scene.patches.len()];
+    for p in hits.into_iter().flatten() {
+        seen[p as usize] = 1.0;
+    }
+    seen
+}
