@@ -326,7 +326,7 @@ fn same_radiosities_for_one_and_two_threads() {
 fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
     use nusselt::formfactor::form_factor_polygon_polygon_with;
     use nusselt::hierarchical::hierarchy::Hierarchy;
-    use nusselt::hierarchical::link::evaluate_link;
+    use nusselt::hierarchical::link::{Evaluator, Inherited};
 
     let scene = cornell();
     let bvh = TriangleBvh::of_scene(&scene);
@@ -344,7 +344,13 @@ fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
             f64::from(u8::from((x - se.corners[0]).dot(n_s) > 0.0))
         })
         .value;
-    let (link, _) = evaluate_link(&scene, &h.elements, floor, face, &bvh, 0, false, |_| 32);
+    let evaluator = Evaluator {
+        scene: &scene,
+        elements: &h.elements,
+        bvh: &bvh,
+        seed: 0,
+    };
+    let (link, _) = evaluator.evaluate(floor, face, Inherited::Nothing, |_| 32);
     let f = f64::from(link.form_factor);
     assert!(exact > 1e-3, "{exact}");
     assert!((f - exact).abs() < 0.05 * exact, "F {f} against {exact}");
@@ -421,9 +427,9 @@ fn buried_floor_under_the_blocks_is_not_averaged_into_links() {
 #[test]
 fn visibility_rays_follow_what_the_decision_needs() {
     use nusselt::hierarchical::hierarchy::{Hierarchy, SourceState};
-    use nusselt::hierarchical::link::evaluate_link;
+    use nusselt::hierarchical::link::{Evaluator, Inherited};
     use nusselt::hierarchical::oracle::{
-        Decision, FEW_RAYS, Oracle, Thresholds, decide, rays_needed,
+        Decision, Ends, FEW_RAYS, Oracle, Thresholds, decide, rays_needed,
     };
 
     let scene = cornell();
@@ -446,19 +452,30 @@ fn visibility_rays_follow_what_the_decision_needs() {
         radiosity: DVec3::splat(b),
         unevenness: DVec3::ZERO,
     };
-    let (dim, bright) = (state(1e-6), state(1e3));
-    let evaluate = |s: &SourceState| {
-        let s = *s;
-        let plan = move |l: &nusselt::hierarchical::link::Link| rays_needed(&t, l, re, se, &s, rho);
-        evaluate_link(&scene, &h.elements, floor, source, &bvh, 0, false, plan)
+    let ends = |state: SourceState| Ends {
+        receiver: re,
+        reflectance: rho,
+        source: se,
+        state,
+    };
+    let (dim, bright) = (ends(state(1e-6)), ends(state(1e3)));
+    let evaluator = Evaluator {
+        scene: &scene,
+        elements: &h.elements,
+        bvh: &bvh,
+        seed: 0,
+    };
+    let evaluate = |ends: &Ends| {
+        let plan = move |l: &nusselt::hierarchical::link::Link| rays_needed(&t, l, ends);
+        evaluator.evaluate(floor, source, Inherited::Nothing, plan)
     };
     let (cheap, cast) = evaluate(&dim);
     assert_eq!((cheap.rays(), cast), (FEW_RAYS, FEW_RAYS as u64));
     assert!(cheap.form_factor > 0.0);
-    assert_eq!(decide(&t, &cheap, re, se, &dim, rho), Decision::Accept);
+    assert_eq!(decide(&t, &cheap, &dim), Decision::Accept);
     let (full, cast) = evaluate(&bright);
     assert_eq!((full.rays(), cast), (32, 32));
     // The cheap link, now that its source is bright: resampled first.
-    assert_eq!(decide(&t, &cheap, re, se, &bright, rho), Decision::Resample);
-    assert_ne!(decide(&t, &full, re, se, &bright, rho), Decision::Resample);
+    assert_eq!(decide(&t, &cheap, &bright), Decision::Resample);
+    assert_ne!(decide(&t, &full, &bright), Decision::Resample);
 }

@@ -172,6 +172,57 @@ pub fn weighted_visibility(
     (total, seen)
 }
 
+/// What the link a new one refines saw of its source: a hint for the new
+/// link's visibility sampling.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Inherited {
+    /// Nothing to go on (a first link, a resample, a partly visible
+    /// parent): sample fully.
+    #[default]
+    Nothing,
+    /// The refined link saw its source whole: one probe ray per receiver
+    /// quarter first ([`sample_visibility`]).
+    WhollyVisible,
+}
+
+impl Link {
+    /// The hint this link leaves to the links that refine it.
+    pub fn inherited(&self) -> Inherited {
+        if self.wholly_visible() {
+            Inherited::WhollyVisible
+        } else {
+            Inherited::Nothing
+        }
+    }
+}
+
+/// What link evaluation needs of a solve: the scene, the elements, the
+/// occluders and the seed of the visibility rays.
+#[derive(Clone, Copy)]
+pub struct Evaluator<'a> {
+    /// The scene (patch normals).
+    pub scene: &'a Scene,
+    /// The hierarchy's arena.
+    pub elements: &'a [Element],
+    /// The occluders.
+    pub bvh: &'a TriangleBvh,
+    /// Seed of the visibility rays.
+    pub seed: u64,
+}
+
+impl Evaluator<'_> {
+    /// [`evaluate_link`] of (receiver `r`, source `s`).
+    pub fn evaluate(
+        &self,
+        r: ElementId,
+        s: ElementId,
+        inherited: Inherited,
+        plan: impl Fn(&Link) -> usize,
+    ) -> (Link, u64) {
+        evaluate_link(self, r, s, inherited, plan)
+    }
+}
+
 /// Evaluates the link (receiver `r_id`, source `s_id`): its form factor
 /// and error, then its visibility with the number of rays `plan` asks for
 /// given the unoccluded link (0: none, when the unoccluded link already
@@ -182,21 +233,23 @@ pub fn weighted_visibility(
 /// are: the spread measures a shadow edge, not sampling noise), each ray
 /// weighted by the kernel cos θ_x cos θ_y / r², so that both the
 /// kernel-weighted visible fraction and its spread over the receiver are
-/// known. When `parent_whole` says the link this one refines saw its
-/// source whole, one ray per quarter probes first, and the link is wholly
-/// visible when none is blocked ([`sample_visibility`]). Returns the link
-/// and the rays cast.
-#[allow(clippy::too_many_arguments)]
+/// known. When the link this one refines saw its source whole
+/// ([`Inherited::WhollyVisible`]), one ray per quarter probes first, and
+/// the link is wholly visible when none is blocked ([`sample_visibility`]).
+/// Returns the link and the rays cast.
 pub fn evaluate_link(
-    scene: &Scene,
-    elements: &[Element],
+    at: &Evaluator,
     r_id: ElementId,
     s_id: ElementId,
-    bvh: &TriangleBvh,
-    seed: u64,
-    parent_whole: bool,
+    inherited: Inherited,
     plan: impl Fn(&Link) -> usize,
 ) -> (Link, u64) {
+    let Evaluator {
+        scene,
+        elements,
+        bvh,
+        seed,
+    } = *at;
     let r = &elements[r_id.index()];
     let s = &elements[s_id.index()];
     let n_r = scene.patches[r.patch as usize].normal;
@@ -269,7 +322,7 @@ pub fn evaluate_link(
     }
     let rays = rays.min(4 * MAX_QUARTER_RAYS);
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
-    let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, parent_whole, &mut rng);
+    let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, inherited, &mut rng);
     (Link::new(s_id, f, spread, v, v_spread, rays), cast)
 }
 
@@ -298,7 +351,7 @@ fn far_apart(r: &Element, n_r: DVec3, s: &Element, n_s: DVec3) -> bool {
 /// The kernel-weighted visible fraction of `s` from `r` and its spread
 /// over `r`'s quarters (see [`evaluate_link`]), and the rays cast.
 ///
-/// With `probe`, one ray per quarter goes first, from strata spread over
+/// With [`Inherited::WhollyVisible`], one ray per quarter goes first, from strata spread over
 /// the sample pattern; when none is blocked the pair is taken as wholly
 /// visible, its V standing for all `rays`. Used for the children of a
 /// wholly visible link, whose ray pairs are a subset of the pairs its
@@ -310,7 +363,7 @@ fn sample_visibility(
     s: &Element,
     bvh: &TriangleBvh,
     rays: usize,
-    probe: bool,
+    inherited: Inherited,
     rng: &mut impl rand::Rng,
 ) -> (f64, f64, u64) {
     let n_r = scene.patches[r.patch as usize].normal;
@@ -326,7 +379,7 @@ fn sample_visibility(
     let quarters = split_corners(r.shape, &r.corners);
     let n = r.vertices().len();
     let mut probed = 0;
-    if probe && per_quarter > 1 {
+    if inherited == Inherited::WhollyVisible && per_quarter > 1 {
         let clear = quarters.iter().enumerate().all(|(k, quarter)| {
             let j = k * per_quarter / 4;
             let x = point_in_polygon(&quarter[..n], from[j]);

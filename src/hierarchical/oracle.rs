@@ -27,19 +27,13 @@ use crate::scene::Scene;
 /// tenth of it (close or touching elements, where the midpoint rule is
 /// biased). The oracle bounds how F varies over the receiver; this makes
 /// its mean right, so that energy is conserved over the hierarchy. The
-/// quadrature's tolerance comes from [`sharpen_tolerance`]; `state` is the
-/// source's state as the oracle sees it.
-pub fn sharpen(
-    scene: &Scene,
-    t: &Thresholds,
-    link: &mut Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-) {
+/// quadrature's tolerance comes from [`sharpen_tolerance`], for the
+/// receiver's own (unweighted) reflectance.
+pub fn sharpen(scene: &Scene, t: &Thresholds, link: &mut Link, ends: &Ends) {
+    let (receiver, source) = (ends.receiver, ends.source);
     let patch = |e: &Element| &scene.patches[e.patch as usize];
     let rho = patch(receiver).reflectance;
-    let tolerance = sharpen_tolerance(t, link, receiver.area, rho, state);
+    let tolerance = sharpen_tolerance(t, link, receiver.area, rho, &ends.state);
     // The exact mean lies within the spread of the point values (nearly:
     // they sample F's extremes): a spread within the tolerance needs
     // nothing.
@@ -51,6 +45,21 @@ pub fn sharpen(
     if let Some(exact) = exact_form_factor(receiver, n_r, source, n_s, tolerance, Some(f)) {
         link.form_factor = exact as f32;
     }
+}
+
+/// A link's two ends as the oracle sees them: the receiver, its
+/// reflectance weighted by its importance, the source, and the source's
+/// state. Every decision about a link takes one.
+#[derive(Clone, Copy, Debug)]
+pub struct Ends<'a> {
+    /// The receiving element.
+    pub receiver: &'a Element,
+    /// ρ of the receiver's patch times its importance weight.
+    pub reflectance: DVec3,
+    /// The source element.
+    pub source: &'a Element,
+    /// The source's radiosity and unevenness ([`SourceState`]).
+    pub state: SourceState,
 }
 
 /// What the oracle says about a link.
@@ -157,21 +166,15 @@ pub const FEW_RAYS: usize = 4;
 /// happened to miss a partial shadow would be kept, the others split, and
 /// light would be lost or gained on average. Only the brightness oracle
 /// weighs visibility error; the others always take the maximum.
-pub fn rays_needed(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-) -> usize {
+pub fn rays_needed(t: &Thresholds, link: &Link, ends: &Ends) -> usize {
+    let (receiver, source) = (ends.receiver, ends.source);
     let most = t.max_rays();
     if t.oracle != Oracle::Bf || most <= FEW_RAYS {
         return most;
     }
     let (f, f_err) = (link.form_factor as f64, link.error as f64);
     let worst = Link::new(link.source, f, f_err, 1.0, 1.0, FEW_RAYS);
-    let (error, eps) = link_error(t, &worst, receiver.area, receiver_reflectance, state);
+    let (error, eps) = link_error(t, &worst, receiver.area, ends.reflectance, &ends.state);
     let minimal = !(receiver.area > t.min_area) && !(source.area > t.min_area);
     if error <= eps || minimal {
         FEW_RAYS
@@ -260,19 +263,11 @@ pub fn shadow_error(
 /// spread, the smallest sampling error), so when even that is rejected,
 /// the link needs no visibility rays ([`decide`] at V = 0 is then the
 /// decision at any V).
-pub fn split_at_any_visibility(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-    rays: usize,
-) -> bool {
+pub fn split_at_any_visibility(t: &Thresholds, link: &Link, ends: &Ends, rays: usize) -> bool {
     let (f, f_err) = (link.form_factor as f64, link.error as f64);
     let occluded = Link::new(link.source, f, f_err, 0.0, 0.0, rays);
     matches!(
-        decide(t, &occluded, receiver, source, state, receiver_reflectance),
+        decide(t, &occluded, ends),
         Decision::SplitReceiver | Decision::SplitSource
     )
 }
@@ -287,21 +282,16 @@ pub fn split_at_any_visibility(
 /// links are always accepted. Before any of this, a link whose visibility
 /// stands for fewer rays than [`rays_needed`] now asks is resampled (one
 /// with no visibility sampled is decided at V = 0 by one ray: a split).
-pub fn decide(
-    t: &Thresholds,
-    link: &Link,
-    receiver: &Element,
-    source: &Element,
-    state: &SourceState,
-    receiver_reflectance: DVec3,
-) -> Decision {
+pub fn decide(t: &Thresholds, link: &Link, ends: &Ends) -> Decision {
     if !(link.form_factor > 0.0) {
         return Decision::Accept;
     }
     let rays = link.rays();
-    if rays > 0 && rays < rays_needed(t, link, receiver, source, state, receiver_reflectance) {
+    if rays > 0 && rays < rays_needed(t, link, ends) {
         return Decision::Resample;
     }
+    let (receiver, source) = (ends.receiver, ends.source);
+    let (receiver_reflectance, state) = (ends.reflectance, &ends.state);
     let (error, eps) = link_error(t, link, receiver.area, receiver_reflectance, state);
     if !(error > eps) {
         return Decision::Accept;

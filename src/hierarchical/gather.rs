@@ -1,0 +1,154 @@
+//! The solve on fixed links: exposure of new leaves, gather
+//! (H = Σ F·V·B_source over each element's links, cluster links included)
+//! and push-pull through the quadtrees, iterated until the total power
+//! settles.
+//!
+//! Invariant: parents precede children in the arena, so push-down runs in
+//! arena order and pull-up in reverse; gathers run in parallel over
+//! receivers, each into its own slot.
+
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::hierarchical::hierarchy::split_corners;
+use crate::hierarchical::solution::Iteration;
+use crate::hierarchical::solver::Solver;
+use crate::scene::polygon_centroid;
+
+impl Solver<'_> {
+    /// Measures the exposure of the leaves created since the last call: of
+    /// the centroids of an element's four quarters, the fraction from which
+    /// a ray along the normal does not first meet the back of a surface
+    /// (a point under a box on the floor, inside a closed solid, sees only
+    /// backs). Elements split meanwhile get theirs from their children in
+    /// push-pull.
+    pub(super) fn measure_exposure(&mut self) {
+        let (scene, bvh) = (self.scene, self.bvh);
+        let gap = 1e-6 * scene.diagonal();
+        let far = 2.0 * scene.diagonal();
+        let h = &mut self.hierarchy;
+        h.elements[self.measured..]
+            .par_iter_mut()
+            .with_min_len(64)
+            .filter(|e| e.is_leaf())
+            .for_each(|e| {
+                let n = scene.patches[e.patch as usize].normal;
+                let k = e.vertices().len();
+                let buried = split_corners(e.shape, &e.corners)
+                    .iter()
+                    .filter(|q| {
+                        let from = polygon_centroid(&q[..k]) + gap * n;
+                        bvh.closest_hit(from, n, far).is_some_and(|hit| {
+                            let t = scene.triangles[hit.triangle as usize].positions;
+                            (t[1] - t[0]).cross(t[2] - t[0]).dot(n) > 0.0
+                        })
+                    })
+                    .count();
+                e.exposure = 1.0 - buried as f32 / 4.0;
+            });
+        self.measured = h.len();
+    }
+
+    /// Gather + push-pull until Σ B·A changes by less than the tolerance
+    /// (at least two iterations); appends to `history`. Returns whether the
+    /// tolerance was met.
+    pub(super) fn iterate(
+        &mut self,
+        irradiance: &mut [DVec3],
+        history: &mut Vec<Iteration>,
+        start: Instant,
+    ) -> bool {
+        self.measure_exposure();
+        let mut power = f64::NAN;
+        for k in 0..self.settings.max_iterations.max(2) {
+            let mut gathered = self.gather();
+            if let Some(c) = &self.clusters {
+                c.gather(self.scene, &self.hierarchy.elements, &mut gathered);
+            }
+            let p = self.push_pull(&gathered, irradiance);
+            if let Some(c) = &mut self.clusters {
+                c.pull_from(self.scene, &self.hierarchy.elements);
+            }
+            let residual = if power.is_nan() {
+                1.0
+            } else if p > 0.0 {
+                (p - power).abs() / p
+            } else {
+                0.0
+            };
+            power = p;
+            history.push(Iteration {
+                iteration: history.len() + 1,
+                residual,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+            if k > 0 && residual < self.settings.tolerance {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers.
+    pub(super) fn gather(&self) -> Vec<DVec3> {
+        let h = &self.hierarchy;
+        self.links
+            .par_iter()
+            .with_min_len(64)
+            .map(|ls| {
+                ls.iter()
+                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// Push-pull from every root; returns Σ B·A (sum of channels) and fills
+    /// the total irradiance per element.
+    pub(super) fn push_pull(&mut self, gathered: &[DVec3], irradiance: &mut [DVec3]) -> f64 {
+        // Parents precede children in the arena: push down in arena order,
+        // then pull up in reverse.
+        let h = &mut self.hierarchy;
+        for i in 0..h.len() {
+            let down = h.elements[i]
+                .parent()
+                .map_or(DVec3::ZERO, |p| irradiance[p.index()]);
+            irradiance[i] = gathered[i] + down;
+        }
+        for i in (0..h.len()).rev() {
+            let e = &h.elements[i];
+            let (b, exposed, exposure) = match e.children() {
+                None => {
+                    let p = &self.scene.patches[e.patch as usize];
+                    let b = p.emission + p.reflectance * irradiance[i];
+                    (b, b, e.exposure)
+                }
+                Some(kids) => {
+                    let (mut b, mut exposed, mut exposed_area) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+                    for k in kids {
+                        let k = &h.elements[k.index()];
+                        let a = k.area * f64::from(k.exposure);
+                        b += k.area * k.radiosity;
+                        exposed += a * k.exposed_radiosity;
+                        exposed_area += a;
+                    }
+                    let b = b / e.area;
+                    if exposed_area > 0.0 {
+                        (b, exposed / exposed_area, (exposed_area / e.area) as f32)
+                    } else {
+                        (b, b, 0.0)
+                    }
+                }
+            };
+            let e = &mut h.elements[i];
+            e.radiosity = b;
+            e.exposed_radiosity = exposed;
+            e.exposure = exposure.clamp(0.0, 1.0);
+        }
+        (0..h.root_count())
+            .map(|r| h.elements[r].radiosity.element_sum() * h.elements[r].area)
+            .sum()
+    }
+}

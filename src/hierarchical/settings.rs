@@ -1,0 +1,195 @@
+//! The settings of the hierarchical solver: the accuracy presets and
+//! every threshold ([`Accuracy`], relative to the scene), the oracle, rays,
+//! seed, iteration limits, clustering and budgets
+//! ([`HierarchicalSettings`]).
+//!
+//! Invariant: every threshold is a fraction of a scene scale (mean emitted
+//! exitance, largest patch emitted power, total area), so a setting means
+//! the same at any scale; the solver scales them once
+//! (`oracle::Thresholds`).
+
+use crate::hierarchical::oracle::Oracle;
+
+/// The named accuracy presets of `--accuracy`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    Preview,
+    Default,
+    High,
+}
+
+/// Every threshold of the hierarchical solver, relative to the scene.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Accuracy {
+    /// ff oracle: largest accepted form factor.
+    pub ff_eps: f64,
+    /// bf oracle: largest accepted ρ_r B_s (V F_err + V_err F + V_err F_err),
+    /// as a fraction of the mean emitted exitance (Φ / A_total).
+    pub bf_eps: f64,
+    /// power oracle: largest accepted A_r F V ρ_r B_s, as a fraction of the
+    /// largest patch emitted power.
+    pub power_eps: f64,
+    /// Cluster oracle: largest accepted ρ_r times the irradiance error of
+    /// a link with a cluster at one end (W/m², as a fraction of the mean
+    /// emitted exitance). Finer than `bf_eps`: a cluster link also shares
+    /// its light among members it cannot see apart ([`crate::hierarchical::cluster`]).
+    pub cluster_eps: f64,
+    /// Elements at or below this fraction of the total area are not split.
+    pub min_area: f64,
+    /// Leaves whose radiosity differs from a sibling's by more than this
+    /// fraction of the mean emitted exitance are split (0 disables).
+    pub gradient_tol: f64,
+    /// Link budget: refinement stops when it is reached (`None`: unlimited).
+    pub max_links: Option<u64>,
+    /// Element budget: no split makes the hierarchy larger (`None`:
+    /// unlimited).
+    pub max_elements: Option<u64>,
+    /// Refinement rounds (refine, solve) at most.
+    pub max_rounds: usize,
+}
+
+impl Accuracy {
+    /// Quick look: coarse shadows.
+    pub fn preview() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.05,
+            bf_eps: 0.2,
+            power_eps: 1e-3,
+            cluster_eps: 0.02,
+            min_area: 1e-4,
+            gradient_tol: 0.5,
+            max_links: None,
+            max_elements: None,
+            max_rounds: 3,
+        }
+    }
+
+    /// The default: soft shadows resolved on the Cornell box in about a
+    /// second.
+    #[allow(clippy::should_implement_trait)]
+    pub fn default() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.01,
+            bf_eps: 0.03,
+            power_eps: 1e-4,
+            cluster_eps: 0.003,
+            min_area: 2e-5,
+            gradient_tol: 0.15,
+            max_links: None,
+            max_elements: None,
+            max_rounds: 5,
+        }
+    }
+
+    /// Finer elements and links for final images.
+    pub fn high() -> Accuracy {
+        Accuracy {
+            ff_eps: 0.002,
+            bf_eps: 0.006,
+            power_eps: 2e-5,
+            cluster_eps: 0.0006,
+            min_area: 4e-6,
+            gradient_tol: 0.05,
+            max_links: None,
+            max_elements: None,
+            max_rounds: 8,
+        }
+    }
+
+    /// The preset's values.
+    pub fn preset(p: Preset) -> Accuracy {
+        match p {
+            Preset::Preview => Accuracy::preview(),
+            Preset::Default => Accuracy::default(),
+            Preset::High => Accuracy::high(),
+        }
+    }
+}
+
+impl Default for Accuracy {
+    fn default() -> Self {
+        Accuracy::default()
+    }
+}
+
+/// How `solve --method hierarchical` runs.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HierarchicalSettings {
+    pub oracle: Oracle,
+    pub accuracy: Accuracy,
+    /// Rays per link for its visible fraction.
+    pub visibility_rays: usize,
+    pub seed: u64,
+    /// Stop gathering when Σ B·A changes by less than this fraction.
+    pub tolerance: f64,
+    /// Gather + push-pull iterations per round at most.
+    pub max_iterations: usize,
+    /// Bytes the hierarchy, the links and the solver's working arrays may
+    /// take, as [`memory_estimate`] counts them: no split crosses it.
+    pub memory_budget: u64,
+    /// Whether links start from a cluster hierarchy above the patches
+    /// ([`crate::hierarchical::cluster`]) or from every pair of patches.
+    pub clustering: Clustering,
+    /// Seconds of linking and refinement after which no element is split
+    /// and no cluster pair opened unless its clusters touch: the links as
+    /// they are then are solved. Results then depend on the machine's
+    /// speed (`None`: no limit).
+    pub time_budget: Option<f64>,
+    /// View importance [SAS92]: per patch, 1 where a view sees it directly
+    /// (else 0). Refinement then weighs each receiver's link errors by the
+    /// patch's importance, this seen-ness carried back along the links
+    /// (see [`Solver::update_importance`]); `None`: every patch counts
+    /// fully.
+    #[serde(skip)]
+    pub importance: Option<Vec<f32>>,
+}
+
+/// `--clustering`: how the initial links are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Clustering {
+    /// Clusters when the scene has at least [`Clustering::AUTO_PATCHES`]
+    /// patches.
+    #[default]
+    Auto,
+    /// Always start from the root cluster's self-link.
+    On,
+    /// Link every pair of patches that face each other (k² pairs).
+    Off,
+}
+
+impl Clustering {
+    /// Patch count from which `Auto` clusters: a million patch pairs.
+    pub const AUTO_PATCHES: usize = 1000;
+
+    /// True when a scene of `patches` patches is clustered.
+    pub fn applies(self, patches: usize) -> bool {
+        match self {
+            Clustering::Auto => patches >= Clustering::AUTO_PATCHES,
+            Clustering::On => true,
+            Clustering::Off => false,
+        }
+    }
+}
+
+impl Default for HierarchicalSettings {
+    fn default() -> Self {
+        HierarchicalSettings {
+            oracle: Oracle::Bf,
+            accuracy: Accuracy::default(),
+            visibility_rays: 32,
+            seed: 0,
+            tolerance: 1e-5,
+            max_iterations: 10_000,
+            memory_budget: DEFAULT_MEMORY_BUDGET,
+            clustering: Clustering::Auto,
+            time_budget: None,
+            importance: None,
+        }
+    }
+}
+
+/// Default of [`HierarchicalSettings::memory_budget`]: 2 GiB, the same as
+/// the dense matrix's.
+pub const DEFAULT_MEMORY_BUDGET: u64 = crate::classic::matrix::DEFAULT_MEMORY_BUDGET;

@@ -1,0 +1,317 @@
+//! The hierarchical solver's state and its driver: initial linking, the
+//! rounds of refine → solve ("multigridding", [HSA91] §5), and the
+//! solution handed back.
+//!
+//! Invariant: the solver's state lives in [`Solver`]; each step of a
+//! round is a method in its own file (`linking`, `refine`, `gather`,
+//! `importance`, `budget`), all running serially over id-ordered lists
+//! with only independent work in parallel.
+
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::discontinuity::Segment;
+use crate::hierarchical::budget::Budget;
+use crate::hierarchical::cluster::Clusters;
+use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
+use crate::hierarchical::link::{Evaluator, Inherited, Link};
+use crate::hierarchical::oracle::{Ends, Thresholds};
+use crate::hierarchical::settings::HierarchicalSettings;
+use crate::hierarchical::solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};
+use crate::scene::Scene;
+use crate::util::progress::Progress;
+use crate::visibility::TriangleBvh;
+
+/// Mean emitted exitance Φ / A_total (largest channel), and the largest
+/// patch emitted power: the scales of the relative thresholds.
+pub(crate) fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
+    let area = scene.total_area();
+    let exitance = scene.emitted_power().max_element() / area;
+    let largest = scene
+        .patches
+        .iter()
+        .map(|p| (p.emission * p.area).max_element())
+        .fold(0.0, f64::max);
+    (exitance, largest, area)
+}
+
+/// A (receiver, source) pair waiting for its link to be evaluated.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Pair {
+    pub(super) receiver: ElementId,
+    pub(super) source: ElementId,
+    /// What the link this pair refines saw of its source.
+    pub(super) inherited: Inherited,
+}
+
+impl Pair {
+    pub(super) fn refining(receiver: ElementId, source: ElementId, inherited: Inherited) -> Pair {
+        Pair {
+            receiver,
+            source,
+            inherited,
+        }
+    }
+}
+
+/// The state of a solve in progress.
+pub(super) struct Solver<'a> {
+    pub(super) scene: &'a Scene,
+    pub(super) bvh: &'a TriangleBvh,
+    pub(super) settings: &'a HierarchicalSettings,
+    pub(super) thresholds: Thresholds,
+    pub(super) hierarchy: Hierarchy,
+    pub(super) links: Vec<Vec<Link>>,
+    pub(super) n_links: u64,
+    /// Of `n_links`, the kept cluster links.
+    pub(super) n_cluster_links: u64,
+    pub(super) rays: u64,
+    /// The first budget that refused a split.
+    pub(super) budget: Option<Budget>,
+    /// Links resampled with more rays so far.
+    pub(super) resampled: u64,
+    /// Elements `..measured` have their exposure measured (the arena only
+    /// grows).
+    pub(super) measured: usize,
+    pub(super) clusters: Option<Clusters>,
+    pub(super) start: Instant,
+    /// Per patch, the weight in [0, 1] of its links' errors (empty: 1).
+    pub(super) weight: Vec<f64>,
+}
+
+/// ρ of `patch` times its importance weight (`weight` empty: ρ).
+pub(super) fn weighted_rho(scene: &Scene, weight: &[f64], patch: u32) -> DVec3 {
+    let rho = scene.patches[patch as usize].reflectance;
+    weight.get(patch as usize).map_or(rho, |w| rho * *w)
+}
+
+/// Solves `scene` by hierarchical radiosity. Never fails: a scene without
+/// links simply radiates its emission.
+pub fn solve_hierarchical(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    settings: &HierarchicalSettings,
+    progress: &Progress,
+) -> HierarchicalSolution {
+    solve_hierarchical_guided(scene, bvh, settings, &[], progress)
+}
+
+/// [`solve_hierarchical`] with the discontinuity segments of each patch
+/// (indexed by patch; shorter or empty means none) as a guide: after the
+/// initial linking, elements crossed by a segment are split down to four
+/// times the minimum element area and their partly visible links move to
+/// the children ([`Solver::follow_discontinuities`]), so the hierarchy
+/// resolves shadows along the segments and not elsewhere.
+pub fn solve_hierarchical_guided(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    settings: &HierarchicalSettings,
+    guide: &[Vec<Segment>],
+    progress: &Progress,
+) -> HierarchicalSolution {
+    let start = Instant::now();
+    let mut solver = Solver::new(scene, bvh, settings, start);
+    let mut times = HierarchicalTimes::default();
+
+    let t = Instant::now();
+    let first_splits = solver.initial_links();
+    times.linking = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let guided_splits = solver.follow_discontinuities(guide);
+    times.refinement += t.elapsed().as_secs_f64();
+
+    let rounds = solver.run_rounds(first_splits + guided_splits, &mut times, progress);
+    solver.finish(rounds, times)
+}
+
+impl Solver<'_> {
+    /// The link evaluator over the current hierarchy.
+    pub(super) fn evaluator(&self) -> Evaluator<'_> {
+        Evaluator {
+            scene: self.scene,
+            elements: &self.hierarchy.elements,
+            bvh: self.bvh,
+            seed: self.settings.seed,
+        }
+    }
+
+    /// The ends of the link (receiver `r`, source `s`) as the oracle sees
+    /// them.
+    pub(super) fn ends(&self, r: ElementId, s: ElementId) -> Ends<'_> {
+        let receiver = self.hierarchy.get(r);
+        Ends {
+            receiver,
+            reflectance: weighted_rho(self.scene, &self.weight, receiver.patch),
+            source: self.hierarchy.get(s),
+            state: self.hierarchy.source_state(s),
+        }
+    }
+}
+
+/// The thresholds of `settings`, scaled to `scene`.
+fn scaled_thresholds(scene: &Scene, settings: &HierarchicalSettings) -> Thresholds {
+    let acc = &settings.accuracy;
+    let (exitance, largest_power, area) = scene_scales(scene);
+    Thresholds {
+        oracle: settings.oracle,
+        ff_eps: acc.ff_eps,
+        bf_eps: acc.bf_eps * exitance,
+        cluster_eps: acc.cluster_eps * exitance,
+        power_eps: acc.power_eps * largest_power,
+        min_area: acc.min_area * area,
+        rays: settings.visibility_rays.max(1),
+    }
+}
+
+/// What the rounds of a solve leave behind, besides the solver's state.
+pub(super) struct Rounds {
+    irradiance: Vec<DVec3>,
+    history: Vec<Iteration>,
+    rounds: Vec<Round>,
+    converged: bool,
+    rounds_exhausted: bool,
+}
+
+impl<'a> Solver<'a> {
+    /// A solver with one root element per patch and no links yet; the
+    /// cluster tree when the scene is clustered, and the importance
+    /// weights when the settings carry them.
+    fn new(
+        scene: &'a Scene,
+        bvh: &'a TriangleBvh,
+        settings: &'a HierarchicalSettings,
+        start: Instant,
+    ) -> Solver<'a> {
+        let mut solver = Solver {
+            scene,
+            bvh,
+            settings,
+            thresholds: scaled_thresholds(scene, settings),
+            hierarchy: Hierarchy::new(scene),
+            links: vec![Vec::new(); scene.patches.len()],
+            n_links: 0,
+            n_cluster_links: 0,
+            rays: 0,
+            resampled: 0,
+            budget: None,
+            measured: 0,
+            clusters: None,
+            start,
+            weight: Vec::new(),
+        };
+        if settings.clustering.applies(scene.patches.len()) {
+            solver.clusters = Some(Clusters::new(scene));
+        }
+        if let Some(seen) = &settings.importance {
+            solver.weight = (0..scene.patches.len())
+                .map(|p| seen.get(p).map_or(0.0, |&v| f64::from(v).clamp(0.0, 1.0)))
+                .collect();
+            if let Some(c) = &mut solver.clusters {
+                c.set_weights(&solver.weight);
+            }
+        }
+        solver
+    }
+
+    /// The rounds ("multigridding", [HSA91] §5): solve with the current
+    /// links (warm-started), then refine with the new radiosities (and
+    /// importance), until a round changes nothing, a budget stops
+    /// refinement or `max_rounds` is reached. `split_links` are the splits
+    /// before the first round.
+    fn run_rounds(
+        &mut self,
+        mut split_links: u64,
+        times: &mut HierarchicalTimes,
+        progress: &Progress,
+    ) -> Rounds {
+        let acc = &self.settings.accuracy;
+        let (exitance, _, _) = scene_scales(self.scene);
+        let phase = progress.phase("hierarchical", acc.max_rounds.max(1) as u64);
+        let mut out = Rounds {
+            irradiance: vec![DVec3::ZERO; self.hierarchy.len()],
+            history: Vec::new(),
+            rounds: Vec::new(),
+            converged: false,
+            rounds_exhausted: false,
+        };
+        let mut gradient_splits = 0;
+        let mut resampled_links = std::mem::take(&mut self.resampled);
+        let mut round_start = Instant::now();
+        let max_rounds = acc.max_rounds.max(1);
+        for round in 0..max_rounds {
+            let t = Instant::now();
+            out.irradiance.resize(self.hierarchy.len(), DVec3::ZERO);
+            let first = out.history.len();
+            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start);
+            times.solve += t.elapsed().as_secs_f64();
+            out.rounds.push(Round {
+                round,
+                split_links,
+                gradient_splits,
+                resampled_links,
+                elements: self.hierarchy.len(),
+                leaves: self.hierarchy.leaf_count(),
+                links: self.n_links,
+                iterations: out.history.len() - first,
+                seconds: round_start.elapsed().as_secs_f64(),
+            });
+            phase.inc(1);
+            if self.budget.is_some() {
+                break;
+            }
+            if round + 1 == max_rounds {
+                out.rounds_exhausted = self.rejected_links() > 0;
+                break;
+            }
+            round_start = Instant::now();
+            let t = Instant::now();
+            self.update_importance();
+            split_links = self.refine();
+            gradient_splits = self.refine_gradients(acc.gradient_tol * exitance);
+            resampled_links = std::mem::take(&mut self.resampled);
+            times.refinement += t.elapsed().as_secs_f64();
+            if split_links == 0 && gradient_splits == 0 && resampled_links == 0 {
+                break;
+            }
+        }
+        out
+    }
+
+    /// The solution: links to fully occluded children were never kept,
+    /// except those waiting for a possible resample, which go now; spare
+    /// capacity is released so the memory figure is what the solution
+    /// holds; the cluster links' light per patch is collected.
+    fn finish(mut self, mut rounds: Rounds, times: HierarchicalTimes) -> HierarchicalSolution {
+        for l in &mut self.links {
+            let before = l.len();
+            l.retain(|l| l.coupling() > 0.0);
+            self.n_links -= (before - l.len()) as u64;
+            l.shrink_to_fit();
+        }
+        self.hierarchy.elements.shrink_to_fit();
+        rounds.irradiance.shrink_to_fit();
+        let budget = self.budget_hit();
+        let (cluster_irradiance, cluster_direct) = self.clusters.as_ref().map_or_else(
+            || (Vec::new(), Vec::new()),
+            |c| c.patch_irradiance(self.scene, &self.hierarchy.elements),
+        );
+        HierarchicalSolution {
+            importance: self.weight,
+            clusters: self.clusters,
+            cluster_irradiance,
+            cluster_direct,
+            links: self.links,
+            irradiance: rounds.irradiance,
+            history: rounds.history,
+            rounds: rounds.rounds,
+            converged: rounds.converged,
+            budget,
+            rounds_exhausted: rounds.rounds_exhausted,
+            visibility_rays: self.rays,
+            times,
+            thresholds: self.thresholds,
+            hierarchy: self.hierarchy,
+        }
+    }
+}
