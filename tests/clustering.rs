@@ -5,6 +5,7 @@
 use glam::DVec3;
 use nusselt::hierarchical::cluster::{ClusterTree, Clusters, Node, Step};
 use nusselt::hierarchical::hierarchy::Hierarchy;
+use nusselt::hierarchical::link::Evaluator;
 use nusselt::hierarchical::{
     Accuracy, Clustering, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
 };
@@ -392,15 +393,14 @@ fn cluster_oracle_accepts_blocked_pairs_early_and_opens_visible_ones_cheaply() {
         let (scene, r, s) = tiles_under_lamp(slab);
         let clusters = Clusters::new(&scene);
         let elements = Hierarchy::new(&scene).elements;
-        clusters.examine(
-            &scene,
-            &TriangleBvh::of_scene(&scene),
-            &elements,
-            r,
-            s,
-            eps,
-            7,
-        )
+        let bvh = TriangleBvh::of_scene(&scene);
+        let at = Evaluator {
+            scene: &scene,
+            elements: &elements,
+            bvh: &bvh,
+            seed: 7,
+        };
+        clusters.examine(&at, r, s, eps)
     };
     let (mut band, mut visible_from, mut blocked_from) = (0, f64::INFINITY, f64::INFINITY);
     for i in 0..60 {

@@ -68,11 +68,11 @@ impl Solver<'_> {
         let eps = self.thresholds.cluster_eps;
         self.n_links += pending.len() as u64;
         while !pending.is_empty() {
-            let elements = &self.hierarchy.elements;
+            let evaluator = self.evaluator();
             let steps: Vec<(Step, u64)> = pending
                 .par_iter()
                 .with_min_len(16)
-                .map(|&(r, s)| clusters.examine(scene, bvh, elements, r, s, eps, seed))
+                .map(|&(r, s)| clusters.examine(&evaluator, r, s, eps))
                 .collect();
             let mut next = Vec::new();
             for (&(r, s), (step, rays)) in pending.iter().zip(steps) {
