@@ -85,6 +85,19 @@ pub struct ReferenceSettings {
     pub max_bounces: Option<u32>,
 }
 
+impl ReferenceSettings {
+    /// Checks the sample count (at least 2: the noise estimate needs two).
+    /// The error names the command-line option.
+    pub fn validate(&self) -> Result<()> {
+        if self.samples_per_pixel < 2 {
+            return Err(Error::Setting(
+                "--spp must be at least 2 for the reference's noise estimate".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for ReferenceSettings {
     fn default() -> Self {
         ReferenceSettings {
@@ -137,12 +150,8 @@ pub fn render_reference(
     settings: &ReferenceSettings,
     progress: &Progress,
 ) -> Result<ReferenceImage> {
+    settings.validate()?;
     let n = settings.samples_per_pixel;
-    if n < 2 {
-        return Err(Error::Setting(format!(
-            "the reference needs at least 2 samples per pixel for its noise estimate, got {n}"
-        )));
-    }
     let start = Instant::now();
     let tracer = Tracer::new(scene, settings.max_bounces)?;
     let (w, h) = (view.width, view.height);

@@ -30,7 +30,9 @@ use crate::visibility::TriangleBvh;
 pub const DEFAULT_MEMORY_BUDGET: u64 = 2 << 30;
 
 /// Which form-factor kernel fills the matrix.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Kernel {
     /// Analytic form factor from the receiver's centroid to the source
@@ -75,6 +77,26 @@ pub struct MatrixSettings {
     pub seed: u64,
     /// Largest matrix allowed, in bytes.
     pub memory_budget: u64,
+}
+
+impl MatrixSettings {
+    /// Checks the kernel's knobs: an even hemicube resolution from 2 to
+    /// 8192 and a positive quadrature tolerance. The error names the
+    /// command-line option.
+    pub fn validate(&self) -> Result<()> {
+        let r = self.hemicube_resolution;
+        if !(2..=8192).contains(&r) || r % 2 != 0 {
+            return Err(Error::Setting(
+                "--hemicube-resolution must be an even number from 2 to 8192".into(),
+            ));
+        }
+        if !(self.quadrature_tolerance > 0.0) {
+            return Err(Error::Setting(
+                "--quadrature-tolerance must be positive".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for MatrixSettings {

@@ -22,7 +22,9 @@ use crate::classic::matrix::FormFactorMatrix;
 use crate::error::{Error, Result};
 
 /// A classic solver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum ClassicMethod {
     /// LU factorisation of I − ρF per channel (Gaussian elimination).

@@ -8,9 +8,32 @@
 //! its area, both sides of double-sided surfaces included) that arrives at
 //! T: F_ST = Σ_{i∈S} A_i Σ_{j∈T} F_ij / A_S.
 
-use crate::classic::matrix::FormFactorMatrix;
+use crate::classic::matrix::{FormFactorMatrix, Kernel};
 use crate::classic::uniform::UniformMesh;
 use crate::scene::Scene;
+
+/// The methods of `nusselt formfactors --method`, by the lecture's names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SurfaceMethod {
+    /// Adaptive polygon-to-polygon quadrature of the analytic inner
+    /// integral, visibility by rays.
+    Analytic,
+    /// Area sampling: stratified point pairs, one ray each.
+    Sampling,
+    /// A hemicube at each element's centroid, z-buffer visibility.
+    Hemicube,
+}
+
+impl SurfaceMethod {
+    /// The kernel that computes it.
+    pub fn kernel(self) -> Kernel {
+        match self {
+            SurfaceMethod::Analytic => Kernel::PolygonPolygon,
+            SurfaceMethod::Sampling => Kernel::Sampling,
+            SurfaceMethod::Hemicube => Kernel::Hemicube,
+        }
+    }
+}
 
 /// One ordered pair of surfaces with a non-zero factor either way.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

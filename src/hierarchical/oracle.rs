@@ -77,7 +77,9 @@ pub enum Decision {
 }
 
 /// The refinement oracles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Oracle {
     /// [HSA91]: refine while the unoccluded form factor exceeds `ff_eps`.

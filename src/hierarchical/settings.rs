@@ -8,14 +8,20 @@
 //! the same at any scale; the solver scales them once
 //! (`oracle::Thresholds`).
 
+use crate::error::{Error, Result};
 use crate::hierarchical::oracle::Oracle;
 
 /// The named accuracy presets of `--accuracy`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Preset {
+    /// Coarse: a quick look.
     Preview,
+    /// Soft shadows resolved at interactive cost.
     Default,
+    /// Finer elements and links for final images.
     High,
 }
 
@@ -146,7 +152,17 @@ pub struct HierarchicalSettings {
 }
 
 /// `--clustering`: how the initial links are made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Clustering {
     /// Clusters when the scene has at least [`Clustering::AUTO_PATCHES`]
@@ -171,6 +187,51 @@ impl Clustering {
             Clustering::Off => false,
         }
     }
+}
+
+impl HierarchicalSettings {
+    /// Checks every threshold and budget: thresholds positive (the gradient
+    /// tolerance zero or positive), budgets at least 1, at least one round,
+    /// a positive time budget and gathering tolerance. The error names the
+    /// command-line option.
+    pub fn validate(&self) -> Result<()> {
+        let a = &self.accuracy;
+        for (name, v) in [
+            ("ff-eps", a.ff_eps),
+            ("bf-eps", a.bf_eps),
+            ("power-eps", a.power_eps),
+            ("cluster-eps", a.cluster_eps),
+            ("min-area", a.min_area),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(setting(format!("--{name} must be a positive number")));
+            }
+        }
+        if !(a.gradient_tol >= 0.0 && a.gradient_tol.is_finite()) {
+            return Err(setting("--gradient-tol must be zero or positive"));
+        }
+        for (name, v) in [("max-links", a.max_links), ("max-elements", a.max_elements)] {
+            if v == Some(0) {
+                return Err(setting(format!(
+                    "--{name} must be a whole number of at least 1, not 0"
+                )));
+            }
+        }
+        if a.max_rounds == 0 {
+            return Err(setting("--max-rounds must be at least 1"));
+        }
+        if self.time_budget.is_some_and(|t| !(t > 0.0 && t.is_finite())) {
+            return Err(setting("--time-budget must be a positive number of seconds"));
+        }
+        if !(self.tolerance > 0.0) {
+            return Err(setting("--tolerance must be positive"));
+        }
+        Ok(())
+    }
+}
+
+fn setting(message: impl Into<String>) -> Error {
+    Error::Setting(message.into())
 }
 
 impl Default for HierarchicalSettings {

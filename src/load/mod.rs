@@ -70,6 +70,19 @@ pub struct LoadOptions {
     pub max_reflectance: f64,
 }
 
+impl LoadOptions {
+    /// Checks the reflectance cap (in (0, 1)). The error names the
+    /// command-line option.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_reflectance > 0.0 && self.max_reflectance < 1.0) {
+            return Err(Error::Setting(
+                "--max-reflectance must be in (0, 1)".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
@@ -102,12 +115,7 @@ pub fn load_scene_from_slice(
 }
 
 fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -> Result<Scene> {
-    if !(options.max_reflectance > 0.0 && options.max_reflectance < 1.0) {
-        return Err(Error::Setting(format!(
-            "max reflectance {} is not in (0, 1)",
-            options.max_reflectance
-        )));
-    }
+    options.validate()?;
     let scene_error = |message: String| Error::scene(path, message);
     let (document, blob) = parse(bytes).map_err(scene_error)?;
     check_uris(&document, base).map_err(scene_error)?;

@@ -64,7 +64,9 @@ use crate::util::union_find::UnionFind;
 use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 
 /// Where the output mesh puts its vertices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum MeshMode {
     /// A regular grid, blind to the lighting.
@@ -106,6 +108,19 @@ pub struct MeshSettings {
     pub adapt_passes: usize,
     /// Seed of the vertices' visibility rays.
     pub seed: u64,
+}
+
+impl MeshSettings {
+    /// Checks the adaptivity tolerance (zero or positive). The error names
+    /// the command-line option.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.adapt_tol >= 0.0 && self.adapt_tol.is_finite()) {
+            return Err(crate::Error::Setting(
+                "--adapt-tol must be zero or positive".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for MeshSettings {

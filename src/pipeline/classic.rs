@@ -37,11 +37,6 @@ pub(super) fn solve(
     let element_size = settings
         .element_size
         .unwrap_or(scene.diagonal() * DEFAULT_ELEMENT_FRACTION);
-    if !(element_size > 0.0 && element_size.is_finite()) {
-        return Err(crate::Error::Setting(format!(
-            "element size {element_size} must be positive"
-        )));
-    }
 
     let t = Instant::now();
     let bvh = TriangleBvh::of_scene(scene);

@@ -21,7 +21,7 @@ use std::time::Instant;
 use crate::classic::matrix::MatrixSettings;
 use crate::classic::solve::{ClassicMethod, Convergence};
 use crate::discontinuity::DiscontinuitySettings;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::hierarchical::HierarchicalSettings;
 use crate::mesh::OutputMesh;
 use crate::meshing::MeshSettings;
@@ -57,6 +57,36 @@ impl Method {
     }
 }
 
+/// `--method`: parsed and listed from the names of [`Method::name`].
+impl clap::ValueEnum for Method {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[
+            Method::Hierarchical,
+            Method::Classic(ClassicMethod::Direct),
+            Method::Classic(ClassicMethod::Jacobi),
+            Method::Classic(ClassicMethod::GaussSeidel),
+            Method::Classic(ClassicMethod::Shooting),
+        ]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let help = match self {
+            Method::Hierarchical => {
+                "Hierarchical radiosity [HSA91]: quadtrees, links, oracle refinement"
+            }
+            Method::Classic(ClassicMethod::Direct) => {
+                "LU factorisation of the full system (Gaussian elimination)"
+            }
+            Method::Classic(ClassicMethod::Jacobi) => "Jacobi gathering",
+            Method::Classic(ClassicMethod::GaussSeidel) => "Gauss-Seidel gathering",
+            Method::Classic(ClassicMethod::Shooting) => {
+                "Southwell shooting / progressive refinement"
+            }
+        };
+        Some(clap::builder::PossibleValue::new(self.name()).help(help))
+    }
+}
+
 /// Everything `nusselt solve` can be told.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveSettings {
@@ -86,6 +116,39 @@ pub struct SolveSettings {
     /// Hierarchical: weigh refinement by the importance of the solve's view
     /// ([`view_importance`]).
     pub importance: bool,
+}
+
+impl SolveSettings {
+    /// Checks every part the method uses (its thresholds, kernel, mesh and
+    /// convergence settings) and that the options fit the method. The
+    /// error names the command-line option.
+    pub fn validate(&self) -> Result<()> {
+        match self.method {
+            Method::Hierarchical => {
+                self.hierarchical.validate()?;
+                self.mesh.validate()?;
+            }
+            Method::Classic(_) => {
+                self.matrix.validate()?;
+                if !(self.convergence.tolerance > 0.0) {
+                    return Err(Error::Setting("--tolerance must be positive".into()));
+                }
+                if let Some(h) = self.element_size {
+                    if !(h > 0.0 && h.is_finite()) {
+                        return Err(Error::Setting(format!(
+                            "element size {h} must be positive"
+                        )));
+                    }
+                }
+                if self.importance {
+                    return Err(Error::Setting(
+                        "--importance needs --method hierarchical".into(),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for SolveSettings {
@@ -132,6 +195,7 @@ fn secs(t: Instant) -> f64 {
 /// view (and the requested snapshots). `report.times.load` and
 /// `report.scene` are left for the caller.
 pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Result<SolveRun> {
+    settings.validate()?;
     match settings.method {
         Method::Hierarchical => hierarchical::solve(scene, settings, progress),
         Method::Classic(method) => classic::solve(scene, settings, method, progress),

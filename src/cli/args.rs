@@ -1,0 +1,261 @@
+//! Argument groups shared by several subcommands (threads, seed and quiet;
+//! the view; the form-factor kernel; the hierarchical accuracy), and their
+//! conversion into the library's settings.
+//!
+//! Invariant: the first stage here only parses and converts flags (a
+//! count must be a whole number, a budget in GiB becomes bytes); whether a
+//! value is in range is for the settings' own `validate`, which the
+//! subcommands call before any work.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use glam::DVec3;
+
+use nusselt::classic::matrix::{Kernel, MatrixSettings};
+use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
+use nusselt::hierarchical::oracle::Oracle;
+use nusselt::render::view::ViewOverrides;
+
+/// Threads, seed and quiet, common to every subcommand that computes.
+#[derive(Args, Debug)]
+pub struct Common {
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Seed of every random choice; the same seed gives the same output.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// No progress bars and no summary line.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// The view and image size, the same for `solve`, `render` and
+/// `reference` so that their images line up pixel for pixel.
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Image width in pixels.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Camera position X,Y,Z (metres).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
+    /// Point the camera looks at, X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
+    /// Up direction X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<DVec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    pub fov: Option<f64>,
+    /// Samples per pixel (`solve`, `render`: stratified, rounded up to a
+    /// square; `reference`: independent paths, at least 2).
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+}
+
+impl ViewArgs {
+    /// The view flags as overrides of the scene's camera.
+    pub fn overrides(&self) -> ViewOverrides {
+        ViewOverrides {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov_deg: self.fov,
+            width: self.width,
+            height: self.height,
+        }
+    }
+}
+
+/// The hierarchical method's accuracy: one preset, and expert overrides of
+/// each of its thresholds.
+#[derive(Args, Debug)]
+pub struct HierarchicalArgs {
+    /// Accuracy preset of the hierarchical method; the flags below override
+    /// single thresholds.
+    #[arg(long, value_enum, default_value_t = Preset::Default)]
+    pub accuracy: Preset,
+    /// Refinement oracle of the hierarchical method.
+    #[arg(long, value_enum, default_value_t = Oracle::Bf)]
+    pub oracle: Oracle,
+    /// ff oracle: largest form factor a link may keep.
+    #[arg(long)]
+    pub ff_eps: Option<f64>,
+    /// bf oracle: largest ρ·B·(form-factor and visibility error) a link may
+    /// keep, as a fraction of the mean emitted exitance.
+    #[arg(long)]
+    pub bf_eps: Option<f64>,
+    /// power oracle: largest power a link may carry, as a fraction of the
+    /// largest patch emitted power.
+    #[arg(long)]
+    pub power_eps: Option<f64>,
+    /// Cluster oracle: largest ρ·(irradiance error) a link with a cluster
+    /// at one end may keep, as a fraction of the mean emitted exitance.
+    #[arg(long)]
+    pub cluster_eps: Option<f64>,
+    /// Smallest element, as a fraction of the total surface area.
+    #[arg(long)]
+    pub min_area: Option<f64>,
+    /// Split leaves whose radiosity differs from a sibling's by more than
+    /// this fraction of the mean emitted exitance (0 disables).
+    #[arg(long)]
+    pub gradient_tol: Option<f64>,
+    /// Link budget: no split takes the link count past N; refinement stops
+    /// there (the report says so).
+    #[arg(long, value_name = "N")]
+    pub max_links: Option<f64>,
+    /// Element budget: no split takes the hierarchy past N elements;
+    /// refinement stops there (the report says so).
+    #[arg(long, value_name = "N")]
+    pub max_elements: Option<f64>,
+    /// Refinement rounds (refine + solve) at most.
+    #[arg(long)]
+    pub max_rounds: Option<usize>,
+    /// Start the links from a cluster hierarchy above the patches (no
+    /// step over every pair of patches); auto clusters scenes of 1,000
+    /// patches or more.
+    #[arg(long, value_enum, default_value_t = Clustering::Auto)]
+    pub clustering: Clustering,
+    /// Seconds of linking and refinement after which the links as they are
+    /// get solved (the report says so); results then depend on the
+    /// machine's speed.
+    #[arg(long, value_name = "SECONDS")]
+    pub time_budget: Option<f64>,
+}
+
+/// What the hierarchical method takes from other flag groups.
+pub struct HierarchicalExtras {
+    /// Seed of every ray.
+    pub seed: u64,
+    /// Visibility rays per link.
+    pub rays: usize,
+    /// Gathering tolerance of each round.
+    pub tolerance: f64,
+    /// Iterations per round at most.
+    pub max_iterations: usize,
+    /// Memory budget in bytes.
+    pub memory_budget: u64,
+}
+
+impl HierarchicalArgs {
+    /// The preset with the overrides given; budgets must be whole numbers.
+    pub fn settings(&self, extras: HierarchicalExtras) -> Result<HierarchicalSettings> {
+        let mut a = Accuracy::preset(self.accuracy);
+        for (slot, v) in [
+            (&mut a.ff_eps, self.ff_eps),
+            (&mut a.bf_eps, self.bf_eps),
+            (&mut a.power_eps, self.power_eps),
+            (&mut a.cluster_eps, self.cluster_eps),
+            (&mut a.min_area, self.min_area),
+            (&mut a.gradient_tol, self.gradient_tol),
+        ] {
+            if let Some(v) = v {
+                *slot = v;
+            }
+        }
+        a.max_links = count("max-links", self.max_links)?;
+        a.max_elements = count("max-elements", self.max_elements)?;
+        if let Some(r) = self.max_rounds {
+            a.max_rounds = r;
+        }
+        Ok(HierarchicalSettings {
+            oracle: self.oracle,
+            accuracy: a,
+            visibility_rays: extras.rays,
+            seed: extras.seed,
+            tolerance: extras.tolerance,
+            max_iterations: extras.max_iterations,
+            memory_budget: extras.memory_budget,
+            time_budget: self.time_budget,
+            importance: None,
+            clustering: self.clustering,
+        })
+    }
+}
+
+/// A budget given as a number: a whole number from 1 to 2^53 (exact in an
+/// f64).
+fn count(name: &str, v: Option<f64>) -> Result<Option<u64>> {
+    match v {
+        Some(v) if !((1.0..=9_007_199_254_740_992.0).contains(&v) && v.fract() == 0.0) => {
+            bail!("--{name} must be a whole number of at least 1, not {v}")
+        }
+        v => Ok(v.map(|v| v as u64)),
+    }
+}
+
+/// How form factors are computed.
+#[derive(Args, Debug)]
+pub struct KernelArgs {
+    /// Form-factor kernel.
+    #[arg(long, value_enum, default_value_t = Kernel::PointPolygon)]
+    pub kernel: Kernel,
+    /// Visibility rays per element pair (point-polygon; default 4), per
+    /// quadrature point (polygon-polygon; default 4) or per link
+    /// (hierarchical; default 32).
+    #[arg(long)]
+    pub visibility_rays: Option<usize>,
+    /// Point pairs per element pair (sampling; default 16 for `solve`,
+    /// 4096 for `formfactors`).
+    #[arg(long)]
+    pub samples: Option<usize>,
+    /// Absolute tolerance of each form factor (polygon-polygon).
+    #[arg(long, default_value_t = 1e-4)]
+    pub quadrature_tolerance: f64,
+    /// Hemicube top-face resolution (cells per side; even).
+    #[arg(long, default_value_t = 128)]
+    pub hemicube_resolution: u32,
+    /// Do not turn each hemicube by a random angle about its normal.
+    #[arg(long)]
+    pub no_hemicube_rotation: bool,
+    /// Largest dense matrix (and direct-method factorisation) allowed, in
+    /// GiB; for hierarchical, the estimated memory of the elements and
+    /// links, where refinement stops (the report says so).
+    #[arg(long, value_name = "GIB", default_value_t = 2.0)]
+    pub memory_budget: f64,
+}
+
+impl KernelArgs {
+    /// The kernel's settings, `default_samples` point pairs unless given;
+    /// validated.
+    pub fn settings(&self, seed: u64, default_samples: usize) -> Result<MatrixSettings> {
+        if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
+            bail!("--memory-budget must be a positive number of GiB");
+        }
+        let settings = MatrixSettings {
+            kernel: self.kernel,
+            visibility_rays: self.visibility_rays.unwrap_or(4).max(1),
+            samples: self.samples.unwrap_or(default_samples).max(1),
+            quadrature_tolerance: self.quadrature_tolerance,
+            hemicube_resolution: self.hemicube_resolution,
+            hemicube_rotation: !self.no_hemicube_rotation,
+            seed,
+            memory_budget: (self.memory_budget * (1u64 << 30) as f64) as u64,
+        };
+        super::checked(settings.validate())?;
+        Ok(settings)
+    }
+}
+
+/// Parses `X,Y,Z` into a finite vector.
+pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number"))?;
+    }
+    Ok(DVec3::from_array(v))
+}

@@ -1,0 +1,125 @@
+//! The `nusselt` command line: the subcommands, one file each, and the
+//! argument groups they share ([`args`]).
+//!
+//! Owns: argument parsing (clap, in two stages: flags parsed and
+//! converted here, ranges checked by the library's settings), the thread
+//! pool, and turning every failure into one `error:` line on stderr with
+//! exit code 1 (usage errors exit 2, through clap).
+//!
+//! Invariant: nothing a user can cause ends in a panic message or a
+//! backtrace; an internal bug is still reported as one line.
+
+mod args;
+mod chart;
+mod compare;
+mod formfactors;
+mod reference;
+mod render;
+mod solve;
+mod study;
+
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "nusselt",
+    version,
+    about = "Radiosity for glTF scenes of diffuse surfaces"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Solve a scene and write solution.exr, baked.gltf, render.exr/png and report.json.
+    Solve(Box<solve::SolveArgs>),
+    /// Render a new view of an earlier solution without solving again.
+    Render(render::RenderArgs),
+    /// Form factors between the scene's surfaces (glTF nodes), as CSV on stdout.
+    Formfactors(formfactors::FormFactorArgs),
+    /// Compare an image with a reference: metrics as JSON on stdout, error images with -o.
+    Compare(compare::CompareArgs),
+    /// Convergence charts (SVG and PNG) from the report.json of one or more solves.
+    Chart(chart::ChartArgs),
+    /// Path-trace an independent reference image of the same view, with a
+    /// per-pixel noise image and a JSON sidecar.
+    Reference(reference::ReferenceArgs),
+    /// Sweep methods and settings against a path-traced reference: results.csv, charts, contact sheet.
+    Study(study::StudyArgs),
+}
+
+/// Runs the command line: parses the arguments, runs the subcommand, and
+/// prints a failure as one `error:` line.
+pub fn main() -> ExitCode {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!(
+            "error: internal error (a bug in nusselt): {}{at}",
+            msg.replace('\n', " ")
+        );
+    }));
+    let cli = Cli::parse();
+    let result = std::panic::catch_unwind(|| match cli.command {
+        Command::Solve(args) => solve::run(*args),
+        Command::Render(args) => render::run(args),
+        Command::Formfactors(args) => formfactors::run(args),
+        Command::Compare(args) => compare::run(args),
+        Command::Chart(args) => chart::run(args),
+        Command::Reference(args) => reference::run(args),
+        Command::Study(args) => study::run(args),
+    });
+    match result {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(err)) => {
+            eprintln!("error: {}", format!("{err:#}").replace('\n', " "));
+            ExitCode::from(1)
+        }
+        Err(_) => ExitCode::from(1),
+    }
+}
+
+/// Sets up the global thread pool (`--threads`).
+fn init_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    Ok(())
+}
+
+/// A settings check of the library, its message (which names the option)
+/// as the error line.
+fn checked(result: nusselt::Result<()>) -> Result<()> {
+    match result {
+        Err(nusselt::Error::Setting(message)) => bail!(message),
+        other => Ok(other?),
+    }
+}
+
+/// Quotes a CSV field when it needs it.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}

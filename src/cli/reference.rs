@@ -1,0 +1,106 @@
+//! `nusselt reference`: an independent path-traced reference image of the
+//! same view, with its per-pixel noise image and a JSON sidecar.
+//!
+//! Invariant: the image is written last, so when it is there its sidecars
+//! are complete.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::reference::{self, ReferenceSettings};
+use nusselt::render::view::View;
+use nusselt::util::progress::Progress;
+
+use super::args::{Common, ViewArgs};
+use super::{checked, init_threads};
+
+#[derive(Args, Debug)]
+pub struct ReferenceArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// The image to write (.exr); `<stem>.noise.exr` and `<stem>.json` go
+    /// beside it.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write a tone-mapped PNG here (auto exposure).
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Largest number of reflections per path (default: unlimited, ended by
+    /// Russian roulette; never more than 10,000).
+    #[arg(long)]
+    max_bounces: Option<u32>,
+    /// Reflectances at or above this are clamped to it (as in `solve`).
+    #[arg(long, default_value_t = 0.999)]
+    max_reflectance: f64,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Runs `nusselt reference`.
+pub fn run(args: ReferenceArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    let options = LoadOptions {
+        max_reflectance: args.max_reflectance,
+    };
+    checked(options.validate())?;
+    let settings = ReferenceSettings {
+        samples_per_pixel: args.view.spp,
+        seed: args.common.seed,
+        max_bounces: args.max_bounces,
+    };
+    checked(settings.validate())?;
+    let scene = load_scene(&args.scene, &options)?;
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &args.view.overrides())?;
+    let mut result = reference::render_reference(&scene, &view, &settings, &progress)
+        .with_context(|| format!("path tracing {}", args.scene.display()))?;
+    result.stats.scene = args.scene.display().to_string();
+    let image = nusselt::output::exr::encode_image(&result.image)?;
+    let noise = nusselt::output::exr::encode_image(&result.noise)?;
+    let stats = nusselt::output::write_json(&result.stats)?;
+    let png = match &args.png {
+        Some(path) => {
+            let exposure = nusselt::output::png::auto_exposure(
+                result
+                    .image
+                    .pixels
+                    .iter()
+                    .map(|&p| nusselt::output::png::luminance(p)),
+            );
+            Some((
+                path,
+                nusselt::output::png::encode_png(&result.image, exposure)?,
+            ))
+        }
+        None => None,
+    };
+    nusselt::output::write_atomic(&reference::noise_path(&args.output), &noise)?;
+    nusselt::output::write_atomic(&reference::stats_path(&args.output), &stats)?;
+    nusselt::output::write_atomic(&args.output, &image)?;
+    if let Some((path, bytes)) = png {
+        nusselt::output::write_atomic(path, &bytes)?;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !args.common.quiet {
+        let s = &result.stats;
+        println!(
+            "{}: {} × {} at {} spp, {:.2} s ({:.3} M samples/s), relative noise {:.2} % → {}",
+            args.scene.display(),
+            s.width,
+            s.height,
+            s.spp,
+            s.time_seconds,
+            s.samples_per_second / 1e6,
+            100.0 * s.relative_noise,
+            args.output.display()
+        );
+    }
+    Ok(())
+}

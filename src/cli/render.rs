@@ -1,0 +1,91 @@
+//! `nusselt render`: a new view of an earlier solution, without solving
+//! again.
+//!
+//! Invariant: with no view flags, the view and exposure are the solve's
+//! (from the `report.json` beside the solution), so the image matches the
+//! solve's own render.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use glam::DVec3;
+
+use nusselt::pipeline;
+use nusselt::render::RenderSettings;
+use nusselt::render::view::View;
+use nusselt::report::Report;
+use nusselt::util::progress::Progress;
+
+use super::args::{Common, ViewArgs};
+use super::init_threads;
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A solution.exr written by `nusselt solve`.
+    solution: PathBuf,
+    /// The image to write (.exr).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write a tone-mapped PNG here.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Runs `nusselt render`.
+pub fn run(args: RenderArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let progress = Progress::new(!args.common.quiet);
+    let mesh = nusselt::output::exr::read_solution(&args.solution)?;
+    mesh.validate()
+        .map_err(|e| anyhow::anyhow!("{}: invalid solution: {e}", args.solution.display()))?;
+    // The solve's report, when it sits beside the solution, gives the view.
+    let report_path = args.solution.with_file_name("report.json");
+    let report: Option<Report> = std::fs::read(&report_path)
+        .ok()
+        .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.as_dvec3()), hi.max(p.as_dvec3()))
+        });
+    let base = report
+        .as_ref()
+        .and_then(|r| r.view.clone())
+        .map(|v| nusselt::scene::Camera {
+            name: "report".into(),
+            eye: v.eye,
+            forward: v.forward,
+            up: v.up,
+            yfov: v.yfov,
+            aspect_ratio: Some(v.width as f64 / v.height as f64),
+        });
+    let mut overrides = args.view.overrides();
+    if let (Some(v), None, None) = (
+        report.as_ref().and_then(|r| r.view.as_ref()),
+        overrides.width,
+        overrides.height,
+    ) {
+        overrides.width = Some(v.width);
+        overrides.height = Some(v.height);
+    }
+    let view = View::resolve(base.as_ref(), (lo, hi), &overrides)?;
+    let settings = RenderSettings {
+        samples_per_pixel: args.view.spp,
+        seed: args.common.seed,
+    };
+    let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
+    nusselt::output::write_atomic(&args.output, &nusselt::output::exr::encode_image(&frame)?)?;
+    if let Some(png) = &args.png {
+        let exposure = report
+            .map(|r| r.exposure)
+            .unwrap_or_else(|| pipeline::frame_exposure(&frame));
+        nusselt::output::write_atomic(png, &nusselt::output::png::encode_png(&frame, exposure)?)?;
+    }
+    Ok(())
+}

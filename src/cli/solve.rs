@@ -1,0 +1,200 @@
+//! `nusselt solve`: load, solve, write the outputs, print a summary.
+//!
+//! Invariant: every setting is checked before the scene is loaded, and
+//! outputs are written only after the whole solve succeeded.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+
+use nusselt::classic::solve::Convergence;
+use nusselt::hierarchical::HierarchicalSettings;
+use nusselt::load::{LoadOptions, load_scene};
+use nusselt::meshing::{MeshMode, MeshSettings};
+use nusselt::pipeline::{self, Method, SolveSettings};
+use nusselt::render::RenderSettings;
+use nusselt::util::progress::Progress;
+
+use super::args::{Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, ViewArgs};
+use super::{checked, init_threads};
+
+#[derive(Args, Debug)]
+pub struct SolveArgs {
+    /// The scene: .gltf or .glb.
+    scene: PathBuf,
+    /// Output folder (default: out/<scene stem>).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Solver: hierarchical (adaptive elements and links, the default), or
+    /// a classic solver on a uniform mesh with a dense matrix.
+    #[arg(long, value_enum, default_value_t = Method::Hierarchical)]
+    method: Method,
+    /// Classic methods: largest element edge in metres (default: 1/25 of the
+    /// scene diagonal). Ignored by hierarchical, which sizes its elements
+    /// itself.
+    #[arg(long)]
+    element_size: Option<f64>,
+    #[command(flatten)]
+    hierarchical: HierarchicalArgs,
+    /// Hierarchical: the output mesh's vertices: a regular grid, the
+    /// hierarchy's leaf corners, or the leaf corners plus the shadow
+    /// discontinuities as constraint edges, with output adaptivity (the
+    /// default).
+    #[arg(long, value_enum)]
+    mesh: Option<MeshMode>,
+    /// Discontinuity mesh: largest relative difference between a triangle's
+    /// interpolated and point-evaluated centroid value before a vertex is
+    /// added there (0 turns output adaptivity off).
+    #[arg(long, default_value_t = MeshSettings::default().adapt_tol)]
+    adapt_tol: f64,
+    /// Uniform mesh: vertices aimed at (default: as many as the hierarchy
+    /// has leaves).
+    #[arg(long)]
+    uniform_vertices: Option<usize>,
+    /// Draw the output mesh's edges over render.png (render.exr stays
+    /// clean).
+    #[arg(long)]
+    wireframe: bool,
+    /// Hierarchical: refine only as much as the view (the scene's camera or
+    /// the view flags) needs: link errors count by the importance of their
+    /// receiver, seen directly or reflecting toward what is seen
+    /// [SAS92]. The report's `importance` says it was used.
+    #[arg(long)]
+    importance: bool,
+    #[command(flatten)]
+    kernel: KernelArgs,
+    /// Gathering: stop when a sweep changes no radiosity by more than this
+    /// fraction of the largest. Shooting: stop when the unshot power is below
+    /// this fraction of the emitted power. Hierarchical: stop each round's
+    /// gathering when the total power Σ B·A changes by less than this
+    /// fraction.
+    #[arg(long, default_value_t = 1e-6)]
+    tolerance: f64,
+    /// Iteration budget: sweeps (gathering, per round for hierarchical) or
+    /// shots (shooting).
+    #[arg(long, default_value_t = 1_000_000)]
+    max_iterations: usize,
+    /// Render snapshots after these iterations, e.g. 1,2,24,100.
+    #[arg(long, value_delimiter = ',')]
+    snapshots: Vec<usize>,
+    /// Reflectances at or above this are clamped to it.
+    #[arg(long, default_value_t = 0.999)]
+    max_reflectance: f64,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    common: Common,
+}
+
+impl SolveArgs {
+    /// The settings of the solve, checked.
+    fn settings(&self) -> Result<SolveSettings> {
+        let matrix = self.kernel.settings(self.common.seed, 16)?;
+        let hierarchical = self.hierarchical.settings(HierarchicalExtras {
+            seed: self.common.seed,
+            rays: self
+                .kernel
+                .visibility_rays
+                .unwrap_or(HierarchicalSettings::default().visibility_rays)
+                .max(1),
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            memory_budget: matrix.memory_budget,
+        })?;
+        let mode = self.mesh.unwrap_or(MeshMode::Discontinuity);
+        if self.method != Method::Hierarchical && self.mesh.is_some_and(|m| m != MeshMode::Uniform)
+        {
+            bail!(
+                "--mesh {} needs --method hierarchical (the classic methods use a uniform mesh)",
+                mode.name()
+            );
+        }
+        let settings = SolveSettings {
+            method: self.method,
+            hierarchical,
+            mesh: MeshSettings {
+                mode,
+                uniform_vertices: self.uniform_vertices,
+                adapt_tol: self.adapt_tol,
+                ..MeshSettings::default()
+            },
+            discontinuity: Default::default(),
+            element_size: self.element_size,
+            matrix,
+            convergence: Convergence {
+                tolerance: self.tolerance,
+                max_iterations: self.max_iterations,
+            },
+            render: RenderSettings {
+                samples_per_pixel: self.view.spp,
+                seed: self.common.seed,
+            },
+            view: self.view.overrides(),
+            snapshots: self.snapshots.clone(),
+            wireframe: self.wireframe,
+            importance: self.importance,
+        };
+        // Both methods' parts, whichever runs: a bad flag is an error even
+        // where it does not apply.
+        checked(settings.hierarchical.validate())?;
+        checked(settings.mesh.validate())?;
+        checked(settings.validate())?;
+        Ok(settings)
+    }
+}
+
+/// Runs `nusselt solve`.
+pub fn run(args: SolveArgs) -> Result<()> {
+    init_threads(args.common.threads)?;
+    let start = Instant::now();
+    let progress = Progress::new(!args.common.quiet);
+    let options = LoadOptions {
+        max_reflectance: args.max_reflectance,
+    };
+    checked(options.validate())?;
+    if !(args.tolerance > 0.0) {
+        bail!("--tolerance must be positive");
+    }
+    let settings = args.settings()?;
+    let scene = load_scene(&args.scene, &options)?;
+    let load_time = start.elapsed().as_secs_f64();
+    let mut run = pipeline::solve(&scene, &settings, &progress)
+        .with_context(|| format!("solving {}", args.scene.display()))?;
+    run.report.scene = args.scene.display().to_string();
+    run.report.times.load = load_time;
+    run.report.times.total += load_time;
+    let dir = args.output.unwrap_or_else(|| default_folder(&args.scene));
+    pipeline::write_outputs(&dir, &mut run)?;
+    for w in &run.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !args.common.quiet {
+        let c = &run.report.counts;
+        println!(
+            "{}: {} patches, {} elements, {} iterations{}, {:.2} s → {}",
+            args.scene.display(),
+            c.patches,
+            c.elements,
+            run.report.convergence.iterations,
+            if run.report.convergence.converged {
+                ""
+            } else {
+                " (not converged)"
+            },
+            run.report.times.total,
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// `out/<scene stem>`.
+fn default_folder(scene: &Path) -> PathBuf {
+    let stem = scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    Path::new("out").join(stem)
+}
