@@ -12,8 +12,8 @@ use clap::Args;
 use glam::DVec3;
 
 use nusselt::classic::matrix::{Kernel, MatrixSettings};
-use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
 use nusselt::hierarchical::oracle::Oracle;
+use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
 use nusselt::render::view::ViewOverrides;
 
 /// Threads, seed and quiet, common to every subcommand that computes.

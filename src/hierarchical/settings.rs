@@ -220,8 +220,13 @@ impl HierarchicalSettings {
         if a.max_rounds == 0 {
             return Err(setting("--max-rounds must be at least 1"));
         }
-        if self.time_budget.is_some_and(|t| !(t > 0.0 && t.is_finite())) {
-            return Err(setting("--time-budget must be a positive number of seconds"));
+        if self
+            .time_budget
+            .is_some_and(|t| !(t > 0.0 && t.is_finite()))
+        {
+            return Err(setting(
+                "--time-budget must be a positive number of seconds",
+            ));
         }
         if !(self.tolerance > 0.0) {
             return Err(setting("--tolerance must be positive"));

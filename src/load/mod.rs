@@ -75,9 +75,7 @@ impl LoadOptions {
     /// command-line option.
     pub fn validate(&self) -> Result<()> {
         if !(self.max_reflectance > 0.0 && self.max_reflectance < 1.0) {
-            return Err(Error::Setting(
-                "--max-reflectance must be in (0, 1)".into(),
-            ));
+            return Err(Error::Setting("--max-reflectance must be in (0, 1)".into()));
         }
         Ok(())
     }

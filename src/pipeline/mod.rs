@@ -135,9 +135,7 @@ impl SolveSettings {
                 }
                 if let Some(h) = self.element_size {
                     if !(h > 0.0 && h.is_finite()) {
-                        return Err(Error::Setting(format!(
-                            "element size {h} must be positive"
-                        )));
+                        return Err(Error::Setting(format!("element size {h} must be positive")));
                     }
                 }
                 if self.importance {
