@@ -1,0 +1,183 @@
+//! The point-to-polygon kernel: the form factor from a differential area
+//! to a polygon by Lambert's contour formula, the polygon clipped to the
+//! half-space in front of the receiver.
+//!
+//! Invariant: finite and in [0, 1] for any polygon, touching and coplanar
+//! ones included; independent of the polygon's winding.
+
+use glam::DVec3;
+
+/// Differential-area-to-polygon form factor F(dA → polygon) by Lambert's
+/// contour formula:
+///
+/// F = (1 / 2π) · |Σ_i γ_i · n · (R_i × R_{i+1}) / |R_i × R_{i+1}||
+///
+/// with R_i = v_i − x and γ_i the angle between R_i and R_{i+1}. The polygon
+/// (any winding, planar, convex or not) is first clipped to the half-space
+/// in front of the receiver's tangent plane. `normal` must be unit length.
+///
+/// ```
+/// use glam::DVec3;
+/// use nusselt::formfactor::form_factor_point_polygon;
+/// // Under a corner of a 1 × 2 rectangle at height 1 (Howell): 0.167375.
+/// let rect = [
+///     DVec3::new(0.0, 0.0, 1.0),
+///     DVec3::new(1.0, 0.0, 1.0),
+///     DVec3::new(1.0, 2.0, 1.0),
+///     DVec3::new(0.0, 2.0, 1.0),
+/// ];
+/// let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &rect);
+/// assert!((f - 0.167375).abs() < 1e-6);
+/// ```
+pub fn form_factor_point_polygon(x: DVec3, normal: DVec3, polygon: &[DVec3]) -> f64 {
+    // Clipping adds at most one vertex per crossing: small polygons stay on
+    // the stack.
+    let mut stack = [DVec3::ZERO; 16];
+    let heap: Vec<DVec3>;
+    let v: &[DVec3] = if polygon.len() < stack.len() {
+        let n = clip_to_half_space(x, normal, polygon, &mut stack);
+        &stack[..n]
+    } else {
+        let mut out = vec![DVec3::ZERO; 2 * polygon.len()];
+        let n = clip_to_half_space(x, normal, polygon, &mut out);
+        out.truncate(n);
+        heap = out;
+        &heap
+    };
+    let n = v.len();
+    if n < 3 {
+        return 0.0;
+    }
+    // A polygon lying in the tangent plane subtends no projected solid angle
+    // (the contour sum would wrongly count the whole disc around x).
+    let height = v.iter().map(|p| (*p - x).dot(normal)).fold(0.0, f64::max);
+    let reach = v.iter().map(|p| (*p - x).length()).fold(0.0, f64::max);
+    if !(height > 1e-12 * reach) {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for i in 0..n {
+        let a = v[i] - x;
+        let b = v[(i + 1) % n] - x;
+        let c = a.cross(b);
+        let len = c.length();
+        if len > 0.0 {
+            let gamma = len.atan2(a.dot(b));
+            sum += gamma * normal.dot(c) / len;
+        }
+    }
+    let f = sum.abs() / (2.0 * std::f64::consts::PI);
+    if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Sutherland–Hodgman clip of `polygon` to {p : (p − x) · n ≥ 0}. Writes the
+/// clipped polygon into `out` (which must hold at least `polygon.len() + 1`
+/// vertices) and returns its vertex count.
+fn clip_to_half_space(x: DVec3, n: DVec3, polygon: &[DVec3], out: &mut [DVec3]) -> usize {
+    let m = polygon.len();
+    let mut k = 0;
+    let mut push = |p: DVec3, k: &mut usize| {
+        if *k < out.len() {
+            out[*k] = p;
+            *k += 1;
+        }
+    };
+    for i in 0..m {
+        let p = polygon[i];
+        let q = polygon[(i + 1) % m];
+        let dp = (p - x).dot(n);
+        let dq = (q - x).dot(n);
+        if dp >= 0.0 {
+            push(p, &mut k);
+        }
+        if (dp >= 0.0) != (dq >= 0.0) {
+            let t = dp / (dp - dq);
+            push(p + t * (q - p), &mut k);
+        }
+    }
+    k
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rect(w: f64, h: f64, z: f64) -> [DVec3; 4] {
+        [
+            DVec3::new(0.0, 0.0, z),
+            DVec3::new(w, 0.0, z),
+            DVec3::new(w, h, z),
+            DVec3::new(0.0, h, z),
+        ]
+    }
+
+    #[test]
+    fn corner_of_rectangle_matches_howell() {
+        let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &rect(1.0, 2.0, 1.0));
+        assert!((f - 0.167375).abs() < 1e-6, "{f}");
+        // Winding does not matter.
+        let mut r = rect(1.0, 2.0, 1.0);
+        r.reverse();
+        let g = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &r);
+        assert!((f - g).abs() < 1e-14);
+    }
+
+    #[test]
+    fn infinite_plane_limit_and_behind() {
+        let big = [
+            DVec3::new(-1e4, -1e4, 1.0),
+            DVec3::new(1e4, -1e4, 1.0),
+            DVec3::new(1e4, 1e4, 1.0),
+            DVec3::new(-1e4, 1e4, 1.0),
+        ];
+        let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &big);
+        assert!((f - 1.0).abs() < 1e-3, "{f}");
+        assert_eq!(form_factor_point_polygon(DVec3::ZERO, -DVec3::Z, &big), 0.0);
+    }
+
+    #[test]
+    fn clipping_half_visible_polygon() {
+        // A vertical wall standing on the receiver's plane, half of it below:
+        // only the upper half counts, and equals the closed form of the half.
+        let wall = [
+            DVec3::new(-1.0, 1.0, -1.0),
+            DVec3::new(1.0, 1.0, -1.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(-1.0, 1.0, 1.0),
+        ];
+        let upper = [
+            DVec3::new(-1.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(-1.0, 1.0, 1.0),
+        ];
+        let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &wall);
+        let g = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &upper);
+        assert!(f > 0.0 && (f - g).abs() < 1e-12);
+    }
+
+    #[test]
+    fn touching_and_coplanar_are_finite() {
+        let r = rect(1.0, 1.0, 0.0);
+        for x in [
+            DVec3::ZERO,
+            DVec3::new(0.5, 0.0, 0.0),
+            DVec3::new(0.5, 0.5, 0.0),
+        ] {
+            assert_eq!(form_factor_point_polygon(x, DVec3::Z, &r), 0.0);
+        }
+        // A wall touching the receiver point along its bottom edge.
+        let wall = [
+            DVec3::new(-1.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(-1.0, 0.0, 1.0),
+        ];
+        let f = form_factor_point_polygon(DVec3::ZERO, DVec3::Z, &wall);
+        assert!(f.is_finite() && (0.0..=0.5).contains(&f), "{f}");
+    }
+}
