@@ -174,6 +174,127 @@ fn one_point_and_constant_series_draw() {
     let images = draw_line_chart(&chart, CHART_SIZE).unwrap();
     let text = svg_text(&images.svg);
     assert!(text.contains("one") && text.contains("empty"));
+    assert_eq!(images.skipped_points, 0);
+    assert_eq!(png_size(&images.png), CHART_SIZE);
+
+    // Axis ranges: one point on log axes spans exactly its enclosing
+    // decades, 1e2 to 1e3 (x) and 1e-2 to 1e-1 (y), no more.
+    let labels = svg_labels(&images.svg);
+    for decade in ["1e2", "1e3", "1e-2", "1e-1"] {
+        assert!(labels.contains(decade), "tick {decade} missing: {labels:?}");
+    }
+    for beyond in ["1e1", "1e4", "1e-3", "1e0"] {
+        assert!(!labels.contains(beyond), "tick {beyond} drawn: {labels:?}");
+    }
+
+    // SVG elements: one marker (the one point; the empty series draws
+    // none) of radius 3, on the x tick of 1e2 and the y grid line of 5e-2.
+    let circles = svg_elements(&images.svg, "circle");
+    assert_eq!(circles.len(), 1, "{circles:?}");
+    let marker = &circles[0];
+    assert_eq!(marker["r"], "3");
+    let (cx, cy): (i32, i32) = (marker["cx"].parse().unwrap(), marker["cy"].parse().unwrap());
+    let x_ticks: Vec<i32> = svg_elements(&images.svg, "polyline")
+        .iter()
+        .filter_map(|p| {
+            let [(x0, y0), (x1, y1)] = points(&p["points"])[..] else {
+                return None;
+            };
+            (x0 == x1 && y1 - y0 == 5).then_some(x0)
+        })
+        .collect();
+    assert_eq!(x_ticks.iter().min(), Some(&cx), "x ticks {x_ticks:?}");
+    let grid_rows: Vec<i32> = svg_elements(&images.svg, "line")
+        .iter()
+        .filter(|l| l["y1"] == l["y2"])
+        .map(|l| l["y1"].parse().unwrap())
+        .collect();
+    assert!(grid_rows.contains(&cy), "y {cy} not on a grid line");
+    // Series lines, 2 px wide: the one-point series and its legend entry
+    // in the marker's colour, the empty series in the legend only.
+    let wide: Vec<String> = svg_elements(&images.svg, "polyline")
+        .into_iter()
+        .filter(|p| p["stroke-width"] == "2")
+        .map(|p| p["stroke"].clone())
+        .collect();
+    assert_eq!(wide.len(), 3, "{wide:?}");
+    assert_eq!(wide.iter().filter(|c| **c == marker["fill"]).count(), 2);
+    let other = wide.iter().find(|c| **c != marker["fill"]).unwrap().clone();
+
+    // Drawn pixels of the PNG: both legend lines alike; the marker's colour
+    // also fills a disc of radius 3 centred where the SVG puts it.
+    // The legend's box is the last rectangle drawn (its border).
+    let rects = svg_elements(&images.svg, "rect");
+    let legend = rects.last().unwrap();
+    let [lx, ly, lw, lh] = ["x", "y", "width", "height"].map(|k| legend[k].parse::<u32>().unwrap());
+    let in_legend = |&(x, y): &(u32, u32)| x >= lx && x < lx + lw && y >= ly && y < ly + lh;
+    let first = pixels_of(&images.png, &marker["fill"]);
+    let second = pixels_of(&images.png, &other);
+    assert!(
+        !second.is_empty() && second.iter().all(in_legend),
+        "{second:?}"
+    );
+    let (legend_first, disc): (Vec<_>, Vec<_>) = first.into_iter().partition(in_legend);
+    assert_eq!(legend_first.len(), second.len());
+    assert!(
+        (25..=45).contains(&disc.len()),
+        "marker of {} pixels",
+        disc.len()
+    );
+    let n = disc.len() as f64;
+    let mean_x = disc.iter().map(|p| p.0 as f64).sum::<f64>() / n;
+    let mean_y = disc.iter().map(|p| p.1 as f64).sum::<f64>() / n;
+    assert!(
+        (mean_x - cx as f64).abs() <= 1.0 && (mean_y - cy as f64).abs() <= 1.0,
+        "marker at ({mean_x}, {mean_y}), SVG ({cx}, {cy})"
+    );
+}
+
+/// The attributes of every `name` element of `svg`.
+fn svg_elements(svg: &str, name: &str) -> Vec<std::collections::HashMap<String, String>> {
+    let doc = roxmltree::Document::parse(svg).unwrap();
+    doc.descendants()
+        .filter(|n| n.is_element() && n.tag_name().name() == name)
+        .map(|n| {
+            n.attributes()
+                .map(|a| (a.name().to_string(), a.value().to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+/// The trimmed text of every `text` element of `svg`.
+fn svg_labels(svg: &str) -> std::collections::HashSet<String> {
+    let doc = roxmltree::Document::parse(svg).unwrap();
+    doc.descendants()
+        .filter(|n| n.is_element() && n.tag_name().name() == "text")
+        .filter_map(|n| n.text())
+        .map(|t| t.trim().to_string())
+        .collect()
+}
+
+/// The points of an SVG `points` attribute, `x,y x,y …`.
+fn points(attribute: &str) -> Vec<(i32, i32)> {
+    attribute
+        .split_whitespace()
+        .map(|p| {
+            let (x, y) = p.split_once(',').unwrap();
+            (x.parse().unwrap(), y.parse().unwrap())
+        })
+        .collect()
+}
+
+/// The PNG pixels within 40 per channel of the SVG colour `#RRGGBB`.
+fn pixels_of(png: &[u8], colour: &str) -> Vec<(u32, u32)> {
+    let channel = |k: usize| i32::from_str_radix(&colour[1 + 2 * k..3 + 2 * k], 16).unwrap();
+    let want = [channel(0), channel(1), channel(2)];
+    let img = image::load_from_memory_with_format(png, image::ImageFormat::Png)
+        .unwrap()
+        .to_rgb8();
+    img.enumerate_pixels()
+        .filter(|(_, _, p)| (0..3).all(|k| (p.0[k] as i32 - want[k]).abs() <= 40))
+        .map(|(x, y, _)| (x, y))
+        .collect()
 }
 
 #[test]

@@ -3,15 +3,15 @@
 //!
 //! Owns: drawing, not data. [`draw_line_chart`] turns any set of labelled
 //! series with axis titles and log flags into SVG text and PNG bytes (the
-//! convergence charts of `nusselt chart` use it, and so can any later
-//! error-against-time or error-against-elements chart);
-//! [`convergence_charts`] builds the two convergence charts from solve
-//! reports; [`false_colour_png`] draws a scalar field with a colour map and a
-//! labelled scale bar (the `error.png` of `nusselt compare`).
+//! convergence charts of [`crate::lab::convergence`] and the study's
+//! error-against-time and error-against-elements charts use it);
+//! [`false_colour_png`] draws a scalar field with a colour map and a
+//! labelled scale bar (the `error.png` of `nusselt compare`);
+//! [`contact_sheet`] lays labelled tiles out on one canvas.
 //!
 //! Invariants:
-//! - Nothing here touches the file system except [`read_convergence`], which
-//!   only reads; the bytes go to `output` for writing.
+//! - Nothing here touches the file system or knows of the solver: data
+//!   comes in as numbers and pixels, the bytes go to `output` for writing.
 //! - Points that a log axis cannot show (zero, negative) and non-finite
 //!   points are skipped and counted, never drawn and never a panic. A chart
 //!   with no drawable point at all is an error, not an empty picture.
@@ -40,14 +40,18 @@ pub const MARKER_LIMIT: usize = 60;
 /// One labelled line of a chart.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
+    /// The series' name in the legend.
     pub label: String,
+    /// (x, y) in drawing order.
     pub points: Vec<(f64, f64)>,
 }
 
 /// An axis: its title and whether it is logarithmic.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Axis {
+    /// The axis' description, drawn beside it.
     pub title: String,
+    /// Base-10 logarithmic rather than linear.
     pub log: bool,
 }
 
@@ -99,16 +103,22 @@ impl Axis {
 /// A line chart: a title, two axes, and the series drawn on them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LineChart {
+    /// The caption above the chart.
     pub title: String,
+    /// The horizontal axis.
     pub x: Axis,
+    /// The vertical axis.
     pub y: Axis,
+    /// The lines, coloured in order.
     pub series: Vec<Series>,
 }
 
 /// A chart drawn twice: as SVG text and as a PNG.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChartImages {
+    /// The chart as SVG text.
     pub svg: String,
+    /// The chart as PNG bytes.
     pub png: Vec<u8>,
     /// Points left out because an axis could not show them (non-positive
     /// on a log axis, or not finite).

@@ -38,11 +38,16 @@
 //! Invariants: metrics are computed in f64 with sequential sums in a fixed
 //! order, so the same images give the same JSON; images of different sizes
 //! and non-finite pixels are errors naming the file, never NaN metrics.
+//! Comparing knows nothing of the solver: it needs only images
+//! ([`Frame`]), the output encoders and the generic drawing of
+//! [`crate::lab::chart`].
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::lab::chart;
+use crate::output::exr;
 use crate::output::png::luminance;
 use crate::render::frame::Frame;
 use crate::{Error, Result};
@@ -57,7 +62,9 @@ pub const CHANNELS: [&str; 3] = ["R", "G", "B"];
 /// Where a maximum occurs.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PixelAt {
+    /// Column, from the left.
     pub x: u32,
+    /// Row, from the top.
     pub y: u32,
     /// `R`, `G` or `B`.
     pub channel: String,
@@ -66,8 +73,11 @@ pub struct PixelAt {
 /// The metrics of one channel, or of all channels pooled.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ChannelMetrics {
+    /// Mean of the test image.
     pub mean_test: f64,
+    /// Mean of the reference.
     pub mean_reference: f64,
+    /// sqrt(mean((t − r)²)).
     pub rmse: f64,
     /// RMSE / mean of the reference; null when that mean is not positive.
     pub relative_rmse: Option<f64>,
@@ -75,7 +85,9 @@ pub struct ChannelMetrics {
     pub mean_relative_error: Option<f64>,
     /// The ε used: [`RELATIVE_EPSILON`] × mean |r|.
     pub epsilon: f64,
+    /// max |t − r|.
     pub max_abs_error: f64,
+    /// Where the maximum is first reached (row-major, channels R, G, B).
     pub max_at: PixelAt,
     /// RMS of the reference's standard error; null without a noise file.
     pub noise_rms: Option<f64>,
@@ -89,10 +101,13 @@ pub struct ChannelMetrics {
 /// Per-channel metrics.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ChannelSet {
+    /// Red.
     #[serde(rename = "R")]
     pub r: ChannelMetrics,
+    /// Green.
     #[serde(rename = "G")]
     pub g: ChannelMetrics,
+    /// Blue.
     #[serde(rename = "B")]
     pub b: ChannelMetrics,
 }
@@ -100,16 +115,21 @@ pub struct ChannelSet {
 /// Everything `nusselt compare` prints.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
+    /// The test image's file.
     pub test: String,
+    /// The reference's file.
     pub reference: String,
     /// The reference's noise file, when one was found.
     pub noise: Option<String>,
+    /// Width of both images, pixels.
     pub width: u32,
+    /// Height of both images, pixels.
     pub height: u32,
     /// Pixels per channel (width × height).
     pub pixels: u64,
     /// [`RELATIVE_EPSILON`].
     pub relative_epsilon: f64,
+    /// Each channel apart.
     pub channels: ChannelSet,
     /// All channels pooled.
     pub overall: ChannelMetrics,
@@ -118,7 +138,9 @@ pub struct Metrics {
 /// An image with the file it came from (named in errors).
 #[derive(Clone, Copy, Debug)]
 pub struct Named<'a> {
+    /// The file (or name) errors and metrics give.
     pub path: &'a Path,
+    /// The image.
     pub frame: &'a Frame,
 }
 
@@ -131,9 +153,18 @@ pub fn noise_path(reference: &Path) -> PathBuf {
     reference.with_file_name(format!("{stem}.noise.exr"))
 }
 
-/// Checks that `image` has the size of `like` (when given) and only finite
-/// pixels (and, for a noise image, no negative ones).
-fn check(image: Named, like: Option<Named>, what: &str, non_negative: bool) -> Result<()> {
+/// Which pixel values [`check`] accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Values {
+    /// Any finite value (an image).
+    Finite,
+    /// Finite and not negative (a standard-error image).
+    NonNegative,
+}
+
+/// Checks that `image` has the size of `like` (when given) and only
+/// `values` pixels.
+fn check(image: Named, like: Option<Named>, what: &str, values: Values) -> Result<()> {
     let f = image.frame;
     if f.width == 0 || f.height == 0 || f.pixels.len() != f.width as usize * f.height as usize {
         return Err(Error::data(
@@ -159,7 +190,7 @@ fn check(image: Named, like: Option<Named>, what: &str, non_negative: bool) -> R
     }
     for (k, p) in f.pixels.iter().enumerate() {
         for (c, v) in p.iter().enumerate() {
-            if !v.is_finite() || (non_negative && *v < 0.0) {
+            if !v.is_finite() || (values == Values::NonNegative && *v < 0.0) {
                 let (x, y) = (k % f.width as usize, k / f.width as usize);
                 return Err(Error::data(
                     image.path,
@@ -252,10 +283,15 @@ fn scope_metrics(
 /// image `noise`, when known). Fails, naming the file, when the sizes
 /// differ or a pixel is not finite (or a noise value is negative).
 pub fn compare_frames(test: Named, reference: Named, noise: Option<Named>) -> Result<Metrics> {
-    check(reference, None, "reference", false)?;
-    check(test, Some(reference), "test image", false)?;
+    check(reference, None, "reference", Values::Finite)?;
+    check(test, Some(reference), "test image", Values::Finite)?;
     if let Some(n) = noise {
-        check(n, Some(reference), "reference's noise image", true)?;
+        check(
+            n,
+            Some(reference),
+            "reference's noise image",
+            Values::NonNegative,
+        )?;
     }
     let noise_frame = noise.map(|n| n.frame);
     let (t, r) = (test.frame, reference.frame);
@@ -280,20 +316,24 @@ pub fn compare_frames(test: Named, reference: Named, noise: Option<Named>) -> Re
 /// their metrics.
 #[derive(Clone, Debug)]
 pub struct Comparison {
+    /// The test image.
     pub test: Frame,
+    /// The reference.
     pub reference: Frame,
+    /// The reference's standard error per pixel, when its file exists.
     pub noise: Option<Frame>,
+    /// Their metrics.
     pub metrics: Metrics,
 }
 
 /// Reads `test`, `reference` and, when it exists, the reference's noise
 /// file ([`noise_path`]), and compares them.
 pub fn compare_files(test: &Path, reference: &Path) -> Result<Comparison> {
-    let test_frame = crate::output::exr::read_image(test)?;
-    let reference_frame = crate::output::exr::read_image(reference)?;
+    let test_frame = exr::read_image(test)?;
+    let reference_frame = exr::read_image(reference)?;
     let noise_file = noise_path(reference);
     let noise = if noise_file.is_file() {
-        Some(crate::output::exr::read_image(&noise_file)?)
+        Some(exr::read_image(&noise_file)?)
     } else {
         None
     };
@@ -371,7 +411,9 @@ fn percent_label(v: &f64) -> String {
 /// The bytes of `error.exr` and `error.png`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ErrorImages {
+    /// The signed difference, float RGB OpenEXR.
     pub exr: Vec<u8>,
+    /// The relative luminance error on the colour map, PNG.
     pub png: Vec<u8>,
 }
 
@@ -391,8 +433,8 @@ pub fn error_images(test: &Frame, reference: &Frame, max_error: f64) -> Result<E
             test.width, test.height, reference.width, reference.height
         )));
     }
-    let exr = crate::output::exr::encode_image(&difference(test, reference))?;
-    let png = crate::lab::chart::false_colour_png(
+    let exr = exr::encode_image(&difference(test, reference))?;
+    let png = chart::false_colour_png(
         reference.width,
         reference.height,
         &relative_luminance_error(test, reference),

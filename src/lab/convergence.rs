@@ -23,6 +23,7 @@ pub struct ConvergenceRun {
     pub path: PathBuf,
     /// The solver, as the report names it (`method`).
     pub method: String,
+    /// The residual after each iteration, with the time it was reached.
     pub history: Vec<HistoryEntry>,
 }
 
@@ -92,7 +93,9 @@ pub fn run_labels(runs: &[ConvergenceRun]) -> Vec<String> {
 /// A chart to be written as `<stem>.svg` and `<stem>.png`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedChart {
+    /// The file stem, without extension.
     pub stem: &'static str,
+    /// The chart drawn.
     pub images: ChartImages,
 }
 
