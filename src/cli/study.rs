@@ -58,6 +58,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     config.height = args.height.unwrap_or(config.height);
     config.reference_spp = args.reference_spp.unwrap_or(config.reference_spp);
     config.seed = args.common.seed;
+    config.validate()?;
     let scene = load_scene(&args.scene, &LoadOptions::default())?;
     let given = match &args.reference {
         Some(path) => {

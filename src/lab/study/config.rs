@@ -10,7 +10,6 @@
 use serde::{Deserialize, Serialize};
 
 use crate::classic::matrix::{Kernel, MatrixSettings};
-use crate::classic::solve::ClassicMethod;
 use crate::error::{Error, Result};
 use crate::hierarchical::{Accuracy, HierarchicalSettings, Preset};
 use crate::pipeline::{Method, SolveSettings};
@@ -102,6 +101,34 @@ impl Default for StudyConfig {
 }
 
 impl StudyConfig {
+    /// Checks every line before anything runs: a known method, known
+    /// accuracy presets, positive element fractions, and the settings
+    /// each run would solve with.
+    pub fn validate(&self) -> Result<()> {
+        for spec in &self.runs {
+            let method = parse_method(&spec.method)?;
+            for a in &spec.accuracy {
+                preset(a, self.seed)?.validate()?;
+            }
+            if let Some(f) = spec
+                .element_fractions
+                .iter()
+                .find(|f| !(**f > 0.0 && f.is_finite()))
+            {
+                return Err(Error::Setting(format!(
+                    "study: element fraction {f} of '{}' must be positive",
+                    spec.label
+                )));
+            }
+            SolveSettings {
+                method,
+                ..base_settings(self, &self.view())
+            }
+            .validate()?;
+        }
+        Ok(())
+    }
+
     /// The scene camera's view at the study's size.
     pub(super) fn view(&self) -> ViewOverrides {
         ViewOverrides {
@@ -158,19 +185,13 @@ impl RunSpec {
 
 /// The solver named `name` in a [`RunSpec`].
 fn parse_method(name: &str) -> Result<Method> {
-    Ok(match name {
-        "hierarchical" => Method::Hierarchical,
-        "direct" => Method::Classic(ClassicMethod::Direct),
-        "jacobi" => Method::Classic(ClassicMethod::Jacobi),
-        "gauss-seidel" => Method::Classic(ClassicMethod::GaussSeidel),
-        "shooting" => Method::Classic(ClassicMethod::Shooting),
-        other => return Err(Error::Setting(format!("study: unknown method '{other}'"))),
-    })
+    <Method as clap::ValueEnum>::from_str(name, false)
+        .map_err(|_| Error::Setting(format!("study: unknown method '{name}'")))
 }
 
 /// The hierarchical settings of the accuracy preset named `name`.
 fn preset(name: &str, seed: u64) -> Result<HierarchicalSettings> {
-    let p: Preset = serde_json::from_value(serde_json::Value::String(name.into()))
+    let p = <Preset as clap::ValueEnum>::from_str(name, false)
         .map_err(|_| Error::Setting(format!("study: unknown accuracy preset '{name}'")))?;
     Ok(HierarchicalSettings {
         accuracy: Accuracy::preset(p),

@@ -61,6 +61,7 @@ pub fn run_study(
     dir: &Path,
     progress: &Progress,
 ) -> Result<StudyResult> {
+    config.validate()?;
     // The view every run renders, and the reference at that view.
     let overrides = config.view();
     let view = View::resolve(scene.cameras.first(), scene.bounds, &overrides)?;
