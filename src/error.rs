@@ -15,7 +15,12 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 pub enum Error {
     /// The scene file could not be read or parsed, or violates the contract.
     #[error("{path}: {message}")]
-    Scene { path: PathBuf, message: String },
+    Scene {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong, naming the mesh, primitive or node.
+        message: String,
+    },
     /// A scene without any emitting surface cannot be lit.
     #[error("no emitting surfaces in the scene")]
     NoEmitters,
@@ -24,18 +29,38 @@ pub enum Error {
     EmptyScene,
     /// An output file or folder could not be written.
     #[error("cannot write {path}: {message}")]
-    Output { path: PathBuf, message: String },
+    Output {
+        /// The file or folder.
+        path: PathBuf,
+        /// The cause.
+        message: String,
+    },
     /// An input file other than a scene (an image, a solution) is unreadable.
     #[error("cannot read {path}: {message}")]
-    Input { path: PathBuf, message: String },
+    Input {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        message: String,
+    },
     /// An input file was read but its content cannot be used as asked
     /// (e.g. images of different sizes, a non-finite pixel).
     #[error("{path}: {message}")]
-    Data { path: PathBuf, message: String },
+    Data {
+        /// The file.
+        path: PathBuf,
+        /// What cannot be used.
+        message: String,
+    },
     /// Data could not be turned into the bytes of an output format (before
     /// any file is touched), e.g. a mesh whose arrays disagree in length.
     #[error("cannot encode {what}: {message}")]
-    Encode { what: &'static str, message: String },
+    Encode {
+        /// The output being encoded.
+        what: &'static str,
+        /// The cause.
+        message: String,
+    },
     /// The mesher could not triangulate a patch (names the patch).
     #[error("meshing failed: {0}")]
     Mesh(String),

@@ -14,6 +14,7 @@ use glam::Vec3;
 /// written to files).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct OutputMesh {
+    /// Vertex positions (world space).
     pub positions: Vec<Vec3>,
     /// Unit normal of the patch the vertex belongs to.
     pub normals: Vec<Vec3>,

@@ -79,6 +79,7 @@ const SEED_TAG: u64 = 0x7265_6665_7265_6e63;
 pub struct ReferenceSettings {
     /// Paths per pixel; at least 2 (the noise estimate needs two).
     pub samples_per_pixel: u32,
+    /// Seed of every path.
     pub seed: u64,
     /// Largest number of reflections of a path; `None` for unlimited (up to
     /// [`MAX_BOUNCES_CAP`]). 0 shows only the emitters seen directly.
@@ -115,8 +116,11 @@ pub struct ReferenceStats {
     pub scene: String,
     /// Paths per pixel.
     pub spp: u32,
+    /// Seed of every path.
     pub seed: u64,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// The bounce limit, `null` when unlimited.
     pub max_bounces: Option<u32>,
@@ -140,6 +144,7 @@ pub struct ReferenceImage {
     pub image: Frame,
     /// Standard error of each pixel value, per channel (module doc).
     pub noise: Frame,
+    /// What the render did and how noisy it is.
     pub stats: ReferenceStats,
 }
 

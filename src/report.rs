@@ -14,6 +14,7 @@ use crate::render::view::View;
 /// Seconds spent in each phase of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimes {
+    /// Reading the scene.
     pub load: f64,
     /// Hierarchical: initial linking of the input patches.
     #[serde(default)]
@@ -21,35 +22,52 @@ pub struct PhaseTimes {
     /// Hierarchical: link and gradient refinement after the first solve.
     #[serde(default)]
     pub refinement: f64,
+    /// Building the occluder BVH.
     pub bvh: f64,
     /// Hierarchical, discontinuity mesh: finding the discontinuity segments.
     #[serde(default)]
     pub discontinuities: f64,
+    /// Classic: the uniform mesh.
     pub mesh: f64,
+    /// Classic: the form-factor matrix.
     pub form_factors: f64,
+    /// The solve proper (gathering, shooting or elimination).
     pub solve: f64,
+    /// The output mesh and its vertex values.
     pub output_mesh: f64,
+    /// Rendering the default view and the snapshots.
     pub render: f64,
+    /// Writing the outputs.
     pub write: f64,
+    /// The whole run.
     pub total: f64,
 }
 
 /// Sizes of everything the run built.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Counts {
+    /// Triangles read from the file.
     pub input_triangles: usize,
+    /// Degenerate triangles dropped.
     pub degenerate_dropped: usize,
+    /// Triangle pairs merged into quad patches.
     pub merged_quads: usize,
+    /// Radiosity patches.
     pub patches: usize,
+    /// Elements (hierarchy nodes, or uniform elements).
     pub elements: usize,
+    /// Leaves (elements without children).
     pub leaves: usize,
     /// Non-zero element interactions (matrix entries or hierarchy links).
     pub links: u64,
+    /// Visibility rays cast.
     pub visibility_rays: u64,
     /// Bytes held by the elements and the links (or the matrix).
     #[serde(default)]
     pub memory_bytes: u64,
+    /// Vertices of the output mesh.
     pub output_vertices: usize,
+    /// Triangles of the output mesh.
     pub output_triangles: usize,
     /// Hierarchical with clustering: clusters above the patches, and the
     /// links (counted in `links`) with a cluster at one end or both; 0
@@ -57,6 +75,7 @@ pub struct Counts {
     #[serde(default)]
     pub clusters: usize,
     #[serde(default)]
+    /// Of `links`, the cluster links.
     pub cluster_links: u64,
 }
 
@@ -73,17 +92,24 @@ pub struct ImportanceReport {
 /// One step of an iterative solve.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct HistoryEntry {
+    /// Iteration (sweep or shot) number, from 1.
     pub iteration: usize,
+    /// Relative change it made.
     pub residual: f64,
+    /// Seconds since the solve started.
     pub seconds: f64,
 }
 
 /// How the solve ended.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ConvergenceReport {
+    /// The tolerance was met.
     pub converged: bool,
+    /// Iterations run.
     pub iterations: usize,
+    /// The tolerance asked for.
     pub tolerance: f64,
+    /// Every iteration.
     pub history: Vec<HistoryEntry>,
     /// Hierarchical: one entry per refinement round.
     #[serde(default)]
@@ -104,17 +130,24 @@ pub struct Power {
 /// The whole report.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Report {
+    /// Version of the program that wrote the report.
     pub nusselt_version: String,
+    /// The scene file, as given.
     pub scene: String,
+    /// The solver.
     pub method: String,
     /// Every setting of the run, by name.
     pub settings: serde_json::Value,
+    /// Sizes of what the run built.
     pub counts: Counts,
     /// Hierarchical: how the output mesh was made.
     #[serde(default)]
     pub mesh: Option<crate::meshing::MeshStats>,
+    /// Seconds per phase.
     pub times: PhaseTimes,
+    /// How the solve ended.
     pub convergence: ConvergenceReport,
+    /// Emitted, absorbed and radiated power.
     pub power: Power,
     /// Hierarchical: the resource budget that stopped refinement (`null`
     /// when none did, and for the classic methods).
@@ -126,10 +159,14 @@ pub struct Report {
     pub importance: Option<ImportanceReport>,
     /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
     pub max_row_sum: f64,
+    /// Mean Σ_j F_ij over the rows.
     pub mean_row_sum: f64,
+    /// The view of the main render.
     pub view: Option<View>,
     /// Display exposure used for `render.png` and `COLOR_0` of the bake.
     pub exposure: f32,
+    /// Worker threads.
     pub threads: usize,
+    /// Non-fatal findings, one line each.
     pub warnings: Vec<String>,
 }

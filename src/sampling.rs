@@ -65,6 +65,7 @@ pub struct PolygonSampler<'a> {
 }
 
 impl<'a> PolygonSampler<'a> {
+    /// A sampler of `polygon` (a fan from its first vertex).
     pub fn new(polygon: &'a [DVec3]) -> PolygonSampler<'a> {
         let p0 = polygon[0];
         let fan = polygon.len() - 2;

@@ -62,6 +62,7 @@ impl Kernel {
 /// How the matrix is assembled.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct MatrixSettings {
+    /// The form-factor kernel.
     pub kernel: Kernel,
     /// Visibility rays per element pair (point-polygon), or per quadrature
     /// point (polygon-polygon).
@@ -74,6 +75,7 @@ pub struct MatrixSettings {
     pub hemicube_resolution: u32,
     /// Turn each hemicube by a random angle about its normal (hemicube).
     pub hemicube_rotation: bool,
+    /// Seed of the visibility rays and sample points.
     pub seed: u64,
     /// Largest matrix allowed, in bytes.
     pub memory_budget: u64,
@@ -122,9 +124,11 @@ const QUADRATURE_BUDGET: usize = 2_000;
 pub struct MatrixStats {
     /// Non-zero entries.
     pub nonzero_pairs: u64,
+    /// Visibility rays cast.
     pub visibility_rays: u64,
     /// Largest and mean row sum Σ_j F_ij (closure: 1 in an enclosure).
     pub max_row_sum: f64,
+    /// Mean Σ_j F_ij over the rows.
     pub mean_row_sum: f64,
 }
 

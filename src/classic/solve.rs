@@ -73,6 +73,7 @@ impl Default for Convergence {
 /// One iteration of a solver.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Iteration {
+    /// Sweep or shot number, from 1.
     pub iteration: usize,
     /// Relative change (gathering) or relative unshot power (shooting).
     pub residual: f64,
@@ -88,16 +89,22 @@ pub struct Solution {
     pub radiosity: Vec<DVec3>,
     /// Irradiance H per element, consistent with `radiosity`: B = E + ρ H.
     pub irradiance: Vec<DVec3>,
+    /// One entry per sweep or shot.
     pub history: Vec<Iteration>,
+    /// The tolerance was met within the iteration budget.
     pub converged: bool,
 }
 
 /// The linear system of a uniform mesh.
 #[derive(Clone, Copy, Debug)]
 pub struct System<'a> {
+    /// F, row i gathering from column j.
     pub matrix: &'a FormFactorMatrix,
+    /// ρ per element.
     pub reflectance: &'a [DVec3],
+    /// E per element (W/m²).
     pub emission: &'a [DVec3],
+    /// Area per element (m²).
     pub area: &'a [f64],
 }
 

@@ -38,7 +38,9 @@ impl SurfaceMethod {
 /// One ordered pair of surfaces with a non-zero factor either way.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SurfacePair {
+    /// The surface the power leaves (its node name).
     pub from: String,
+    /// The surface it arrives at.
     pub to: String,
     /// F_ST.
     pub form_factor: f64,

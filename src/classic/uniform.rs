@@ -29,11 +29,15 @@ use crate::scene::{Patch, Scene, Shape, polygon_area_normal, polygon_centroid};
 /// One element of a uniform mesh: a convex planar polygon on one patch.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Element {
+    /// The patch the element lies on.
     pub patch: u32,
     /// 3 or 4 corners, counter-clockwise seen from the front.
     pub corners: Vec<DVec3>,
+    /// Area-weighted centroid.
     pub centroid: DVec3,
+    /// Unit normal (the patch's).
     pub normal: DVec3,
+    /// Area (m²).
     pub area: f64,
 }
 
@@ -51,6 +55,7 @@ struct PatchGrid {
 /// All patches of a scene cut into elements.
 #[derive(Clone, Debug)]
 pub struct UniformMesh {
+    /// Every element, patch by patch.
     pub elements: Vec<Element>,
     /// The requested largest element edge, in metres.
     pub element_size: f64,

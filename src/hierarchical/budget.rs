@@ -99,8 +99,11 @@ impl Budget {
 /// exceeded it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct BudgetHit {
+    /// Which budget.
     pub kind: Budget,
+    /// Its limit, in its unit.
     pub limit: u64,
+    /// What was reached when the solve ended.
     pub reached: u64,
 }
 

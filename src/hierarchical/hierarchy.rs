@@ -54,6 +54,7 @@ pub struct Element {
     /// 3 or 4 corners (see `shape`), counter-clockwise; for a triangle the
     /// fourth repeats the third.
     pub corners: [DVec3; 4],
+    /// Area (m²).
     pub area: f64,
     /// Radiosity B: at a leaf E + ρ H; above, the area-weighted mean of the
     /// children (after push-pull).
@@ -67,9 +68,11 @@ pub struct Element {
     /// measures it; above the leaves, the area-weighted mean of the
     /// children's after push-pull).
     pub exposure: f32,
+    /// The patch the element lies on.
     pub patch: u32,
     parent: u32,
     first_child: u32,
+    /// Triangle or quad, as its patch.
     pub shape: Shape,
     /// 0 for a root.
     pub depth: u8,
@@ -157,6 +160,7 @@ pub struct SourceState {
 /// All quadtrees of a scene.
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
+    /// The arena: roots (one per patch, patch order) first, then children in creation order.
     pub elements: Vec<Element>,
     /// Patch count: elements `0..roots` are the roots.
     roots: usize,

@@ -42,6 +42,7 @@ use crate::visibility::TriangleBvh;
 /// One interaction, kept in its receiver's list (16 bytes).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Link {
+    /// The element gathered from.
     pub source: ElementId,
     /// Unoccluded form factor receiver → source estimate, in [0, 1].
     pub form_factor: f32,

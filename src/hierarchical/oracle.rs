@@ -106,6 +106,7 @@ impl Oracle {
 /// The oracle's thresholds, already scaled to the scene.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Thresholds {
+    /// Which oracle decides.
     pub oracle: Oracle,
     /// Absolute form-factor threshold (ff).
     pub ff_eps: f64,

@@ -122,10 +122,13 @@ impl Default for Accuracy {
 /// How `solve --method hierarchical` runs.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct HierarchicalSettings {
+    /// The refinement oracle.
     pub oracle: Oracle,
+    /// Every threshold, from a preset or overridden.
     pub accuracy: Accuracy,
     /// Rays per link for its visible fraction.
     pub visibility_rays: usize,
+    /// Seed of every visibility ray.
     pub seed: u64,
     /// Stop gathering when Σ B·A changes by less than this fraction.
     pub tolerance: f64,

@@ -17,6 +17,7 @@ use crate::hierarchical::oracle::Thresholds;
 /// One gather + push-pull iteration.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Iteration {
+    /// Number of the iteration over the whole solve, from 1.
     pub iteration: usize,
     /// Relative change of the total power Σ B·A.
     pub residual: f64,
@@ -28,6 +29,7 @@ pub struct Iteration {
 /// the solve that followed (also the `rounds` of `report.json`).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Round {
+    /// Number of the round, from 0.
     pub round: usize,
     /// Links the oracle split this round.
     pub split_links: u64,
@@ -36,32 +38,42 @@ pub struct Round {
     /// Links sampled again with more visibility rays because their source
     /// got brighter ([`crate::hierarchical::oracle::rays_needed`]).
     pub resampled_links: u64,
+    /// Elements after the round.
     pub elements: usize,
+    /// Leaves after the round.
     pub leaves: usize,
+    /// Links after the round.
     pub links: u64,
     /// Iterations of the solve that followed.
     pub iterations: usize,
+    /// Wall time of the round.
     pub seconds: f64,
 }
 
 /// Timings, in seconds.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct HierarchicalTimes {
+    /// Initial linking (cluster oracle or all patch pairs).
     pub linking: f64,
+    /// Refinement after the initial linking (guided splits and rounds).
     pub refinement: f64,
+    /// Gather and push-pull iterations.
     pub solve: f64,
 }
 
 /// The result of [`solve_hierarchical`].
 #[derive(Clone, Debug)]
 pub struct HierarchicalSolution {
+    /// The quadtrees of the patches.
     pub hierarchy: Hierarchy,
     /// `links[e]`: the links element e gathers over.
     pub links: Vec<Vec<Link>>,
     /// Total irradiance H (own links + pushed from ancestors) per element;
     /// meaningful at leaves, where B = E + ρ H.
     pub irradiance: Vec<DVec3>,
+    /// Every gather + push-pull iteration.
     pub history: Vec<Iteration>,
+    /// Every refinement round.
     pub rounds: Vec<Round>,
     /// The last solve met the tolerance.
     pub converged: bool,
@@ -69,7 +81,9 @@ pub struct HierarchicalSolution {
     pub budget: Option<BudgetHit>,
     /// Refinement stopped at `max_rounds` with links still to split.
     pub rounds_exhausted: bool,
+    /// Visibility rays cast.
     pub visibility_rays: u64,
+    /// Seconds per phase.
     pub times: HierarchicalTimes,
     /// The thresholds used, in scene units.
     pub thresholds: Thresholds,
@@ -79,6 +93,7 @@ pub struct HierarchicalSolution {
     /// the patch; empty without clusters), and the part of it that comes
     /// from emission.
     pub cluster_irradiance: Vec<DVec3>,
+    /// Per patch, the part of `cluster_irradiance` that comes from emission (the sources' own light).
     pub cluster_direct: Vec<DVec3>,
     /// Per patch, the importance weight refinement used last (empty
     /// without importance).

@@ -12,6 +12,7 @@
 pub mod chart;
 pub mod compare;
 pub mod convergence;
+#[doc(hidden)]
 pub mod failures;
 pub(crate) mod reference_cache;
 pub mod study;

@@ -7,8 +7,11 @@
 /// A float RGB image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Linear RGB per pixel, row by row from the top.
     pub pixels: Vec<[f32; 3]>,
 }
 

@@ -29,6 +29,7 @@ use crate::visibility::TriangleBvh;
 pub struct RenderSettings {
     /// Samples per pixel, rounded up to a square number.
     pub samples_per_pixel: u32,
+    /// Seed of the sample positions.
     pub seed: u64,
 }
 

@@ -26,25 +26,36 @@ pub const MAX_SIDE: u32 = 16_384;
 /// Command-line overrides of the view; any subset may be given.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ViewOverrides {
+    /// Camera position.
     pub eye: Option<DVec3>,
+    /// Point the camera looks at.
     pub target: Option<DVec3>,
+    /// Up direction.
     pub up: Option<DVec3>,
     /// Vertical field of view in degrees.
     pub fov_deg: Option<f64>,
+    /// Image width in pixels.
     pub width: Option<u32>,
+    /// Image height in pixels.
     pub height: Option<u32>,
 }
 
 /// A pinhole view and image size.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct View {
+    /// Camera position.
     pub eye: DVec3,
+    /// Unit viewing direction.
     pub forward: DVec3,
+    /// Unit right vector of the image plane.
     pub right: DVec3,
+    /// Unit up vector of the image plane.
     pub up: DVec3,
     /// Vertical field of view, radians.
     pub yfov: f64,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
 }
 

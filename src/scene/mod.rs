@@ -64,6 +64,7 @@ pub struct Surface {
 /// triangle (texture means included).
 #[derive(Clone, Debug, PartialEq)]
 pub struct InputTriangle {
+    /// Corners, counter-clockwise seen from the front.
     pub positions: [DVec3; 3],
     /// Index into [`Scene::materials`].
     pub material: u32,
@@ -79,22 +80,29 @@ pub struct InputTriangle {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Side {
+    /// The side the input triangle faces.
     Front,
+    /// The other side of a double-sided triangle.
     Back,
 }
 
 /// The two patch shapes: quads (from merged triangle pairs) and triangles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Shape {
+    /// One input triangle.
     Triangle,
+    /// Two coplanar input triangles merged.
     Quad,
 }
 
 /// A kept input triangle: an occluder, and the patches it belongs to.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneTriangle {
+    /// Corners, counter-clockwise seen from the front.
     pub positions: [DVec3; 3],
+    /// Index into `Scene::materials`.
     pub material: u32,
+    /// Index into `Scene::surfaces`.
     pub surface: u32,
     /// The front patch containing this triangle.
     pub front_patch: u32,
@@ -108,12 +116,17 @@ pub struct Patch {
     /// Corners counter-clockwise seen from the front; for a triangle the
     /// fourth corner repeats the third and is never used.
     pub corners: [DVec3; 4],
+    /// Triangle or quad.
     pub shape: Shape,
     /// Unit normal of the radiating side.
     pub normal: DVec3,
+    /// Area (m²).
     pub area: f64,
+    /// Index into `Scene::materials`.
     pub material: u32,
+    /// Index into `Scene::surfaces`.
     pub surface: u32,
+    /// Which side of its triangles it is.
     pub side: Side,
     /// ρ, area-weighted over the patch's triangles.
     pub reflectance: DVec3,
@@ -158,7 +171,9 @@ impl Patch {
 /// A perspective camera from the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
+    /// The camera node's name.
     pub name: String,
+    /// Position (world space).
     pub eye: DVec3,
     /// Unit viewing direction.
     pub forward: DVec3,
@@ -186,13 +201,19 @@ pub struct SceneStats {
 /// A loaded scene, ready for the solvers.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// Every material, by index.
     pub materials: Vec<Material>,
+    /// Every surface (glTF node with a mesh), by index.
     pub surfaces: Vec<Surface>,
+    /// The kept input triangles: the occluders.
     pub triangles: Vec<SceneTriangle>,
+    /// The radiosity patches.
     pub patches: Vec<Patch>,
+    /// The scene's cameras, in node order.
     pub cameras: Vec<Camera>,
     /// Axis-aligned bounds of all kept triangles.
     pub bounds: (DVec3, DVec3),
+    /// What building did.
     pub stats: SceneStats,
     /// Non-fatal findings (dropped triangles, clamped reflectances, ignored
     /// material features), one line each.

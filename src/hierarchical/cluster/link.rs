@@ -78,6 +78,7 @@ pub const RETRY_RAYS: usize = 32;
 /// What [`Clusters::evaluate`] found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Evaluation {
+    /// The link, to keep.
     Link(ClusterLink),
     /// No pair of points faced each other.
     Nothing,

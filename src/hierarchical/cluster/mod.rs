@@ -57,7 +57,9 @@ use lobes::Lobes;
 /// A node of the cluster tree: a cluster or an input patch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Node {
+    /// A cluster, by index into the tree.
     Cluster(u32),
+    /// An input patch, by index.
     Patch(u32),
 }
 
@@ -75,6 +77,7 @@ impl Node {
 /// The tree, the cluster links and the clusters' radiosity during a solve.
 #[derive(Clone, Debug)]
 pub struct Clusters {
+    /// The cluster tree.
     pub tree: ClusterTree,
     radiance: Radiance,
     /// Links gathered by each cluster.

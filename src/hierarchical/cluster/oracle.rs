@@ -34,6 +34,7 @@ pub enum Step {
     SelfLink(u32),
     /// Open the receiver (a cluster) / the source (a cluster).
     OpenReceiver,
+    /// Open the source (a cluster).
     OpenSource,
     /// Two patches: for the element links.
     Patches,

@@ -32,9 +32,11 @@ pub struct Cluster {
     /// Σ A · normal_lobes(n) over the patches: the area seen from
     /// direction −d is about `projected · lobes(d)`.
     pub projected: Lobes,
+    /// The two children.
     pub kids: [Node; 2],
     /// The patches are `order[first..first + count]`.
     pub first: u32,
+    /// Number of patches under the cluster.
     pub count: u32,
 }
 
@@ -53,6 +55,7 @@ pub struct ClusterTree {
     patch_radius: Vec<f64>,
     /// The root, `None` for a scene without patches.
     pub root: Option<Node>,
+    /// Wall time the build took.
     pub build_time: Duration,
 }
 
