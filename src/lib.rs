@@ -16,7 +16,7 @@
 //! | shadow discontinuity segments | [`discontinuity`] |
 //! | output mesh and the final gather at its vertices | [`meshing`], [`mesh`] |
 //! | images of the output mesh | [`render`] |
-//! | the independent path tracer | [`reference`] |
+//! | the independent path tracer | [`reference`](mod@reference) |
 //! | files and the report | [`output`], [`report`] |
 //! | the `solve` job, phase by phase | [`pipeline`] |
 //! | comparison, charts, studies, the failure table | [`lab`] |

@@ -268,7 +268,7 @@ fn gather(
     }
 }
 
-/// Southwell shooting [CCWG88]: repeatedly take the element with the largest
+/// Southwell shooting \[CCWG88\]: repeatedly take the element with the largest
 /// unshot power ΔB_i A_i (summed over channels; ties to the lowest index)
 /// and distribute it: every j receives ΔB_j += ρ_j F_ji ΔB_i. The display
 /// radiosity adds the ambient term ρ_j · R · Σ ΔB_i A_i / Σ A_i with

@@ -60,7 +60,7 @@ pub struct SolveArgs {
     /// Hierarchical: refine only as much as the view (the scene's camera or
     /// the view flags) needs: link errors count by the importance of their
     /// receiver, seen directly or reflecting toward what is seen
-    /// [SAS92]. The report's `importance` says it was used.
+    /// \[SAS92\]. The report's `importance` says it was used.
     #[arg(long)]
     importance: bool,
     #[command(flatten)]

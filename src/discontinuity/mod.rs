@@ -1,6 +1,6 @@
 //! Shadow discontinuity segments on receiver patches: the D0 contact lines
 //! where an occluder touches a receiver, and the D1 lines of the critical
-//! wedges of the primary emitters [LTG92] [LTG93].
+//! wedges of the primary emitters \[LTG92\] \[LTG93\].
 //!
 //! Owns: the public results ([`Segment`], [`SegmentKind`],
 //! [`Discontinuities`], [`DiscontinuityStats`]), the knobs
@@ -42,8 +42,8 @@
 //! - Emitter patches that do not merge into one convex luminaire are traced
 //!   separately (`luminaires`).
 //!
-//! References: [LTG92] Lischinski, Tampieri, Greenberg, "Discontinuity
-//! meshing for accurate radiosity", IEEE CG&A 1992; [LTG93] "Combining
+//! References: \[LTG92\] Lischinski, Tampieri, Greenberg, "Discontinuity
+//! meshing for accurate radiosity", IEEE CG&A 1992; \[LTG93\] "Combining
 //! hierarchical radiosity and discontinuity meshing", SIGGRAPH 1993.
 
 mod clip;

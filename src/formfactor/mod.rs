@@ -12,7 +12,7 @@
 //! touching, coplanar and degenerate configurations.
 //!
 //! References: Lambert's contour integral for a differential area to a
-//! polygon, as catalogued by Howell; [CW93] §4; [CG85] for the hemicube.
+//! polygon, as catalogued by Howell; \[CW93\] §4; \[CG85\] for the hemicube.
 
 pub mod area_sampling;
 pub mod closed_form;

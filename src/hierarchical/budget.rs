@@ -61,13 +61,13 @@ pub fn memory_estimate(elements: u64, links: u64, cluster_links: u64) -> u64 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Budget {
-    /// [`Accuracy::max_links`].
+    /// `Accuracy::max_links`.
     Links,
-    /// [`Accuracy::max_elements`].
+    /// `Accuracy::max_elements`.
     Elements,
-    /// [`HierarchicalSettings::memory_budget`], in bytes.
+    /// `HierarchicalSettings::memory_budget`, in bytes.
     Memory,
-    /// [`HierarchicalSettings::time_budget`], in milliseconds.
+    /// `HierarchicalSettings::time_budget`, in milliseconds.
     Time,
 }
 

@@ -1,4 +1,4 @@
-//! The element hierarchy of hierarchical radiosity [HSA91]: one quadtree per
+//! The element hierarchy of hierarchical radiosity \[HSA91\]: one quadtree per
 //! input patch, in one arena addressed by [`ElementId`].
 //!
 //! Owns: elements (geometry, tree links, per-element solution state), the

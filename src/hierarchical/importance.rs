@@ -1,4 +1,4 @@
-//! View importance [SAS92]: per patch, how much its light matters to what
+//! View importance \[SAS92\]: per patch, how much its light matters to what
 //! a view sees, carried back along the links, as the weight of each
 //! receiver's link errors.
 //!

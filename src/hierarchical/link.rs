@@ -1,4 +1,4 @@
-//! Links of hierarchical radiosity [HSA91]: element-to-element
+//! Links of hierarchical radiosity \[HSA91\]: element-to-element
 //! interactions and their evaluation (form factor, its error, visibility).
 //! Whether a link is accurate enough is the oracle's business
 //! ([`crate::hierarchical::oracle`]).
@@ -182,7 +182,7 @@ pub enum Inherited {
     #[default]
     Nothing,
     /// The refined link saw its source whole: one probe ray per receiver
-    /// quarter first ([`sample_visibility`]).
+    /// quarter first (`sample_visibility`).
     WhollyVisible,
 }
 
@@ -236,7 +236,7 @@ impl Evaluator<'_> {
 /// kernel-weighted visible fraction and its spread over the receiver are
 /// known. When the link this one refines saw its source whole
 /// ([`Inherited::WhollyVisible`]), one ray per quarter probes first, and
-/// the link is wholly visible when none is blocked ([`sample_visibility`]).
+/// the link is wholly visible when none is blocked (`sample_visibility`).
 /// Returns the link and the rays cast.
 pub fn evaluate_link(
     at: &Evaluator,

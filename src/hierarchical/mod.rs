@@ -1,4 +1,4 @@
-//! The hierarchical radiosity solver [HSA91] with multigridding: initial
+//! The hierarchical radiosity solver \[HSA91\] with multigridding: initial
 //! linking (from the root cluster's self-link when clustering,
 //! [`crate::hierarchical::cluster`], else every facing pair of input patches),
 //! oracle-driven link refinement, gradient refinement, and gather +
@@ -7,7 +7,7 @@
 //! Owns: [`Accuracy`] (the presets and every threshold),
 //! [`HierarchicalSettings`] (with the resource budgets, [`BudgetHit`]),
 //! [`solve_hierarchical`] and the output mesh of a hierarchy,
-//! [`leaf_output_mesh`].
+//! `leaf_output_mesh`.
 //!
 //! Invariants:
 //! - Links live with their receivers (`links[receiver]`), in an order that
@@ -35,7 +35,7 @@
 //! - Cluster links count in the link total and the budgets; their
 //!   irradiance is added to the patch roots' before push-pull.
 //!
-//! The loop ("multigridding", [HSA91] §5): refine every link with the
+//! The loop ("multigridding", \[HSA91\] §5): refine every link with the
 //! current radiosities; gather + push-pull until the total power Σ B·A
 //! changes by less than the tolerance; split leaves whose radiosity differs
 //! from a sibling's by more than the gradient tolerance; repeat until a

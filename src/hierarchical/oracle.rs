@@ -82,12 +82,12 @@ pub enum Decision {
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Oracle {
-    /// [HSA91]: refine while the unoccluded form factor exceeds `ff_eps`.
+    /// \[HSA91\]: refine while the unoccluded form factor exceeds `ff_eps`.
     Ff,
     /// Brightness-weighted (SPLASH-2): ρ_r B_s (V F_err + V_err F + V_err F_err)
     /// against `bf_eps` × the mean emitted exitance.
     Bf,
-    /// [RenderPark] power: A_r F ρ_r B_s against `power_eps` × the largest
+    /// RenderPark power: A_r F ρ_r B_s against `power_eps` × the largest
     /// patch emitted power.
     Power,
 }

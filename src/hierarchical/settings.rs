@@ -135,7 +135,7 @@ pub struct HierarchicalSettings {
     /// Gather + push-pull iterations per round at most.
     pub max_iterations: usize,
     /// Bytes the hierarchy, the links and the solver's working arrays may
-    /// take, as [`memory_estimate`] counts them: no split crosses it.
+    /// take, as `memory_estimate` counts them: no split crosses it.
     pub memory_budget: u64,
     /// Whether links start from a cluster hierarchy above the patches
     /// ([`crate::hierarchical::cluster`]) or from every pair of patches.
@@ -145,10 +145,10 @@ pub struct HierarchicalSettings {
     /// they are then are solved. Results then depend on the machine's
     /// speed (`None`: no limit).
     pub time_budget: Option<f64>,
-    /// View importance [SAS92]: per patch, 1 where a view sees it directly
+    /// View importance \[SAS92\]: per patch, 1 where a view sees it directly
     /// (else 0). Refinement then weighs each receiver's link errors by the
     /// patch's importance, this seen-ness carried back along the links
-    /// (see [`Solver::update_importance`]); `None`: every patch counts
+    /// (see `Solver::update_importance`); `None`: every patch counts
     /// fully.
     #[serde(skip)]
     pub importance: Option<Vec<f32>>,

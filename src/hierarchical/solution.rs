@@ -61,7 +61,7 @@ pub struct HierarchicalTimes {
     pub solve: f64,
 }
 
-/// The result of [`solve_hierarchical`].
+/// The result of `solve_hierarchical`.
 #[derive(Clone, Debug)]
 pub struct HierarchicalSolution {
     /// The quadtrees of the patches.

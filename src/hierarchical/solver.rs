@@ -1,5 +1,5 @@
 //! The hierarchical solver's state and its driver: initial linking, the
-//! rounds of refine → solve ("multigridding", [HSA91] §5), and the
+//! rounds of refine → solve ("multigridding", \[HSA91\] §5), and the
 //! solution handed back.
 //!
 //! Invariant: the solver's state lives in [`Solver`]; each step of a
@@ -101,7 +101,7 @@ pub fn solve_hierarchical(
 /// (indexed by patch; shorter or empty means none) as a guide: after the
 /// initial linking, elements crossed by a segment are split down to four
 /// times the minimum element area and their partly visible links move to
-/// the children ([`Solver::follow_discontinuities`]), so the hierarchy
+/// the children (`Solver::follow_discontinuities`), so the hierarchy
 /// resolves shadows along the segments and not elsewhere.
 pub fn solve_hierarchical_guided(
     scene: &Scene,
@@ -214,7 +214,7 @@ impl<'a> Solver<'a> {
         solver
     }
 
-    /// The rounds ("multigridding", [HSA91] §5): solve with the current
+    /// The rounds ("multigridding", \[HSA91\] §5): solve with the current
     /// links (warm-started), then refine with the new radiosities (and
     /// importance), until a round changes nothing, a budget stops
     /// refinement or `max_rounds` is reached. `split_links` are the splits

@@ -9,7 +9,7 @@
 //! Invariants:
 //! - Untrusted input never panics and never drives an allocation: every
 //!   accessor is checked against the bytes actually loaded
-//!   ([`accessor::check`]) before it is read, node hierarchies are walked
+//!   (`accessor::check`) before it is read, node hierarchies are walked
 //!   iteratively and each node at most once (cycles and shared children are
 //!   errors), and the total triangle count is capped ([`MAX_TRIANGLES`]).
 //!   External URIs must name regular files (a device or FIFO would be read

@@ -28,7 +28,10 @@ pub enum VertexValues {
     LeafMean,
     /// [`point_radiosity`] at the vertex, from the first leaf (in mesh
     /// order) that has it as a corner.
-    PointGather { seed: u64 },
+    PointGather {
+        /// Seed of the vertices' visibility rays.
+        seed: u64,
+    },
 }
 
 /// The output mesh of a solved hierarchy, each vertex's radiosity made as

@@ -168,7 +168,7 @@ pub struct MeshStats {
     /// Extra vertex copies made on contact lines.
     pub split_vertices: usize,
     /// Emitter patches whose light is gathered at each vertex (0: through
-    /// the links, beyond [`MAX_DIRECT_EMITTERS`]).
+    /// the links, beyond `MAX_DIRECT_EMITTERS`).
     pub direct_emitters: usize,
     /// Point evaluations (vertices, copies and centroid checks).
     pub evaluations: usize,

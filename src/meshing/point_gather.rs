@@ -233,6 +233,9 @@ pub struct PointEvaluator<'a> {
 }
 
 impl<'a> PointEvaluator<'a> {
+    /// The evaluator of `solution`, gathering the direct light of every
+    /// emitter patch at each point when there are at most
+    /// [`MAX_DIRECT_EMITTERS`].
     pub fn new(
         scene: &'a Scene,
         bvh: &'a TriangleBvh,

@@ -1,5 +1,5 @@
 //! The hierarchical path of a solve: occluders, discontinuity segments
-//! (for that mesh mode), link, refine and solve [HSA91], the output mesh
+//! (for that mesh mode), link, refine and solve \[HSA91\], the output mesh
 //! of the mode, the render; and the report of each step.
 //!
 //! Invariant: the phases run in that order, each timed into the report;
@@ -193,7 +193,7 @@ fn settings_json(
 const IMPORTANCE_GRID: u32 = 256;
 
 /// The patches `view` sees directly: 1 for each patch hit first (on its
-/// front) by a ray of a grid over the image (at most [`IMPORTANCE_GRID`]
+/// front) by a ray of a grid over the image (at most `IMPORTANCE_GRID`
 /// rays a side, pixel centres), 0 for the others.
 pub fn view_importance(scene: &Scene, bvh: &TriangleBvh, view: &View) -> Vec<f32> {
     let scale = (f64::from(IMPORTANCE_GRID) / f64::from(view.width.max(view.height))).min(1.0);

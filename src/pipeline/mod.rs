@@ -2,7 +2,7 @@
 //! with a report; and writing its outputs.
 //!
 //! Owns: [`SolveSettings`], [`SolveRun`], the order of the phases and
-//! their timing ([`hierarchical`] and [`classic`] hold one path each).
+//! their timing (`hierarchical` and `classic` hold one path each).
 //! Each phase lives in its own module; this one only wires them together.
 //!
 //! Invariant: [`solve`] does no IO; [`write_outputs`] only encodes what the

@@ -1,4 +1,4 @@
-//! Hemicube form factors [CG85]: one row F(dA_x → polygon k) for all k at
+//! Hemicube form factors \[CG85\]: one row F(dA_x → polygon k) for all k at
 //! once, with visibility resolved by a z-buffer on the five cube faces.
 //!
 //! Owns: [`Hemicube`] (the cell layout and its delta form factors) and the
@@ -31,7 +31,7 @@
 //!   receiver (the cell's quad through the analytic point-to-polygon
 //!   kernel), not the cell-centre approximation, so the cells of a hemicube
 //!   sum to 1 up to round-off at every resolution; the only errors left are
-//!   the classic ones of [CG85]: aliasing (a cell counts whole or not at
+//!   the classic ones of \[CG85\]: aliasing (a cell counts whole or not at
 //!   all, by its centre) and the differential receiver.
 //! - A cell belongs to the nearest polygon whose front faces x, unless a
 //!   back face (or a polygon seen from behind) is strictly nearer: back

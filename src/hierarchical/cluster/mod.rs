@@ -1,4 +1,4 @@
-//! Clusters above the patches ([SAG94], [Sil95]): a binary tree over the
+//! Clusters above the patches (\[SAG94\], \[Sil95\]): a binary tree over the
 //! input patches with one root, the links that have a cluster at one end
 //! or both, their oracle, and the gather and push-pull through the
 //! cluster levels.

@@ -43,10 +43,10 @@
 //! - the result depends only on the scene and the inputs, not on the thread
 //!   count.
 //!
-//! Tolerances are relative: the weld radius of a patch is [`WELD`] times the
-//! scene diagonal, reduced to [`THIN`] times the patch's width for thin
-//! patches; points within [`ON_EDGE`] weld radii of an edge go on it,
-//! boundary points within [`CORNER`] of a corner become that corner.
+//! Tolerances are relative: the weld radius of a patch is `WELD` times the
+//! scene diagonal, reduced to `THIN` times the patch's width for thin
+//! patches; points within `ON_EDGE` weld radii of an edge go on it,
+//! boundary points within `CORNER` of a corner become that corner.
 //!
 //! Refinement runs inside a frame of four extra vertices around the patch:
 //! rounding leaves boundary points a hair inside the hull, and spade would
