@@ -46,6 +46,7 @@ pub mod cluster;
 mod gather;
 pub mod hierarchy;
 mod importance;
+mod limits;
 pub mod link;
 mod linking;
 pub mod oracle;
@@ -54,7 +55,8 @@ pub mod settings;
 pub mod solution;
 mod solver;
 
-pub use budget::{Budget, BudgetHit, memory_estimate};
+pub use budget::{Budget, BudgetHit};
+pub use limits::memory_estimate;
 pub use settings::{Accuracy, Clustering, DEFAULT_MEMORY_BUDGET, HierarchicalSettings, Preset};
 pub use solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};
 pub(crate) use solver::scene_scales;

@@ -16,13 +16,8 @@ use super::{
 };
 use crate::error::{Error, Result};
 
-/// Relative tolerances of scene building, as fractions of the scene diagonal.
-pub(super) const DEGENERATE_HEIGHT: f64 = 1e-9;
-pub(super) const COPLANAR_DISTANCE: f64 = 1e-7;
-/// Largest angle (radians) between the normals of two merged triangles.
-pub(super) const COPLANAR_ANGLE: f64 = 1e-6;
-/// Smallest |sin| of a merged quad's corner angle: no 180° corners.
-pub(super) const CONVEX_SIN: f64 = 1e-6;
+/// Smallest height of a kept triangle, as a fraction of the scene diagonal.
+const DEGENERATE_HEIGHT: f64 = 1e-9;
 
 impl Scene {
     /// Builds patches from loaded triangles. Fails when a vertex coordinate

@@ -10,9 +10,16 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::InputTriangle;
-use super::build::{CONVEX_SIN, COPLANAR_ANGLE, COPLANAR_DISTANCE};
 use super::polygon::polygon_area_normal;
 use crate::util::geometry::{PositionKey, position_key};
+
+/// Largest distance of the fourth corner from the first triangle's plane,
+/// as a fraction of the scene diagonal.
+const COPLANAR_DISTANCE: f64 = 1e-7;
+/// Largest angle (radians) between the normals of two merged triangles.
+const COPLANAR_ANGLE: f64 = 1e-6;
+/// Smallest |sin| of a merged quad's corner angle: no 180° corners.
+const CONVEX_SIN: f64 = 1e-6;
 
 /// Groups triangles into patches: `(a, None)` for a lone triangle, `(a,
 /// Some((b, quad)))` for a merged pair. Greedy and deterministic: triangles

@@ -99,7 +99,7 @@ pub fn write_scale(dir: &Path, target: usize) -> Result<(Vec<PathBuf>, usize)> {
     let scene = scale::scene(target);
     let mut files = Vec::new();
     push_scene(&mut files, "", &scene)?;
-    Ok((write_files(dir, files)?, readme::triangle_count(&scene)))
+    Ok((write_files(dir, files)?, model::triangle_count(&scene)))
 }
 
 /// Writes `files` (path relative to `dir`, bytes) into `dir`.

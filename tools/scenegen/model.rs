@@ -5,7 +5,7 @@
 //! bytes on every run. Every triangle is listed counter-clockwise seen from
 //! its front (lit) side, as glTF requires.
 
-use glam::{DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 
 /// A diffuse material: reflectance ρ and, for emitters, the emitted radiance.
 #[derive(Clone, Debug)]
@@ -164,4 +164,38 @@ pub fn look_rotation(forward: DVec3, up: DVec3) -> DQuat {
     let right = up.cross(back).normalize();
     let true_up = back.cross(right);
     DQuat::from_mat3(&glam::DMat3::from_cols(right, true_up, back)).normalize()
+}
+
+/// World transform of every node reachable from the roots (None otherwise).
+pub fn world_transforms(scene: &SceneDef) -> Vec<Option<DAffine3>> {
+    let mut out = vec![None; scene.nodes.len()];
+    let mut stack: Vec<(usize, DAffine3)> = scene
+        .roots
+        .iter()
+        .rev()
+        .map(|&r| (r, DAffine3::IDENTITY))
+        .collect();
+    while let Some((n, parent)) = stack.pop() {
+        let node = &scene.nodes[n];
+        let local = DAffine3::from_rotation_translation(
+            node.rotation.unwrap_or_default(),
+            node.translation.unwrap_or_default(),
+        );
+        let world = parent * local;
+        out[n] = Some(world);
+        stack.extend(node.children.iter().rev().map(|&c| (c, world)));
+    }
+    out
+}
+
+/// Total triangle count of the nodes reachable from the roots.
+pub fn triangle_count(s: &SceneDef) -> usize {
+    let world = world_transforms(s);
+    s.nodes
+        .iter()
+        .enumerate()
+        .filter(|(n, _)| world[*n].is_some())
+        .filter_map(|(_, node)| node.mesh)
+        .map(|m| s.meshes[m].triangles.len())
+        .sum()
 }

@@ -6,10 +6,11 @@ use std::f64::consts::PI;
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use glam::{DAffine3, DVec3};
+use glam::DVec3;
 
 use super::encode::index_mesh;
-use super::model::{BufferStorage, SceneDef};
+pub use super::model::triangle_count;
+use super::model::{BufferStorage, SceneDef, world_transforms};
 use super::scale::Plan;
 use super::stress::StressScene;
 
@@ -32,42 +33,8 @@ fn vec3(v: DVec3) -> String {
     format!("({}, {}, {})", num(v.x), num(v.y), num(v.z))
 }
 
-/// World transform of every node reachable from the roots (None otherwise).
-fn world_transforms(scene: &SceneDef) -> Vec<Option<DAffine3>> {
-    let mut out = vec![None; scene.nodes.len()];
-    let mut stack: Vec<(usize, DAffine3)> = scene
-        .roots
-        .iter()
-        .rev()
-        .map(|&r| (r, DAffine3::IDENTITY))
-        .collect();
-    while let Some((n, parent)) = stack.pop() {
-        let node = &scene.nodes[n];
-        let local = DAffine3::from_rotation_translation(
-            node.rotation.unwrap_or_default(),
-            node.translation.unwrap_or_default(),
-        );
-        let world = parent * local;
-        out[n] = Some(world);
-        stack.extend(node.children.iter().rev().map(|&c| (c, world)));
-    }
-    out
-}
-
 fn triangle_area(t: &[DVec3; 3]) -> f64 {
     0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()
-}
-
-/// Total triangle count of the nodes reachable from the roots.
-pub fn triangle_count(s: &SceneDef) -> usize {
-    let world = world_transforms(s);
-    s.nodes
-        .iter()
-        .enumerate()
-        .filter(|(n, _)| world[*n].is_some())
-        .filter_map(|(_, node)| node.mesh)
-        .map(|m| s.meshes[m].triangles.len())
-        .sum()
 }
 
 /// One scene's section; `dir` prefixes its file names in the heading

@@ -32,8 +32,8 @@ use glam::{DQuat, DVec3};
 
 use super::interior::{LIGHT_RADIANCE, books, bookshelf, chair, table};
 use super::lattice::{Lattice, lines};
+use super::model::triangle_count;
 use super::model::{BufferStorage, Camera, Emission, Material, Node, SceneDef};
-use super::readme::triangle_count;
 use super::shapes::{Side, Tri, cuboid_grid, cylinder, sphere};
 
 /// Column widths (x), cycled. At least 3.6 m, so that corner pieces
