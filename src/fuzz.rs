@@ -173,7 +173,7 @@ pub fn fuzz_triangulate(data: &[u8]) -> std::result::Result<(), String> {
 }
 
 /// The fixed scene of [`fuzz_triangulate`].
-fn fuzz_scene() -> crate::Result<Scene> {
+fn fuzz_scene() -> crate::error::Result<Scene> {
     let quad = |p: [[f64; 3]; 4], surface: u32, material: u32| {
         let p = p.map(DVec3::from_array);
         [[p[0], p[1], p[2]], [p[0], p[2], p[3]]].map(|positions| InputTriangle {

@@ -24,7 +24,7 @@ use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// What chart errors name.
 const CHART: &str = "the chart";

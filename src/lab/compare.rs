@@ -50,7 +50,7 @@ use crate::lab::chart;
 use crate::output::exr;
 use crate::output::png::luminance;
 use crate::render::frame::Frame;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// ε as a fraction of the mean absolute reference value (module doc).
 pub const RELATIVE_EPSILON: f64 = 0.01;

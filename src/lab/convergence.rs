@@ -14,7 +14,7 @@ use serde::Deserialize;
 
 use crate::lab::chart::{Axis, CHART_SIZE, ChartImages, LineChart, Series, draw_line_chart};
 use crate::report::HistoryEntry;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The convergence history of one solve, as read from its `report.json`.
 #[derive(Clone, Debug, PartialEq)]

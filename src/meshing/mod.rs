@@ -129,7 +129,7 @@ impl MeshSettings {
     /// the command-line option.
     pub fn validate(&self) -> Result<()> {
         if !(self.adapt_tol >= 0.0 && self.adapt_tol.is_finite()) {
-            return Err(crate::Error::Setting(
+            return Err(crate::error::Error::Setting(
                 "--adapt-tol must be zero or positive".into(),
             ));
         }

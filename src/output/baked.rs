@@ -33,7 +33,7 @@ use json::mesh::{Mode, Semantic};
 use json::validation::{Checked::Valid, USize64};
 
 use crate::mesh::OutputMesh;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// What the encoder names in its errors.
 const BAKED: &str = "the baked glTF";

@@ -31,7 +31,7 @@ use glam::Vec3;
 
 use crate::mesh::OutputMesh;
 use crate::render::frame::Frame;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Width in pixels of both parts of `solution.exr`.
 pub const ROW_WIDTH: usize = 1024;

@@ -22,7 +22,7 @@ use image::ImageEncoder;
 use image::codecs::png::PngEncoder;
 
 use crate::render::frame::Frame;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The fraction of the positive luminances that [`auto_exposure`] keeps
 /// below full scale.
