@@ -12,8 +12,8 @@
 //! | ray queries against the occluders | [`visibility`], [`sampling`] |
 //! | form-factor kernels | [`formfactor`] |
 //! | uniform mesh, dense matrix, classic solvers | [`classic`] |
+//! | shadow discontinuity segments (they guide refinement) | [`discontinuity`] |
 //! | hierarchy, links, oracle, clusters, solve | [`hierarchical`] |
-//! | shadow discontinuity segments | [`discontinuity`] |
 //! | output mesh and the final gather at its vertices | [`meshing`], [`mesh`] |
 //! | images of the output mesh | [`render`] |
 //! | the independent path tracer | [`reference`](mod@reference) |
@@ -77,11 +77,11 @@ pub mod formfactor;
 // Solvers.
 pub mod classic;
 
+pub mod discontinuity;
+
 pub mod hierarchical;
 
 // Output mesh.
-pub mod discontinuity;
-
 pub mod mesh;
 
 pub mod meshing;

@@ -261,4 +261,4 @@ impl Default for HierarchicalSettings {
 
 /// Default of [`HierarchicalSettings::memory_budget`]: 2 GiB, the same as
 /// the dense matrix's.
-pub const DEFAULT_MEMORY_BUDGET: u64 = crate::classic::matrix::DEFAULT_MEMORY_BUDGET;
+pub const DEFAULT_MEMORY_BUDGET: u64 = 2 << 30;

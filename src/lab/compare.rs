@@ -46,11 +46,11 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::{Error, Result};
 use crate::lab::chart;
 use crate::output::exr;
 use crate::output::png::luminance;
 use crate::render::frame::Frame;
-use crate::error::{Error, Result};
 
 /// ε as a fraction of the mean absolute reference value (module doc).
 pub const RELATIVE_EPSILON: f64 = 0.01;

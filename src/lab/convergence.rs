@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::error::{Error, Result};
 use crate::lab::chart::{Axis, CHART_SIZE, ChartImages, LineChart, Series, draw_line_chart};
 use crate::report::HistoryEntry;
-use crate::error::{Error, Result};
 
 /// The convergence history of one solve, as read from its `report.json`.
 #[derive(Clone, Debug, PartialEq)]

@@ -43,9 +43,7 @@ use crate::scene::{Camera, InputTriangle, MAX_COORDINATE, Material, Scene, Surfa
 use self::accessor::Expect;
 use self::texture::{Sampler, Texture, UvTransform};
 
-/// Most triangles a scene may deliver (after instancing); about 4 GB of
-/// input triangles, far beyond what the solvers can handle.
-pub const MAX_TRIANGLES: usize = 1 << 25;
+pub use crate::scene::MAX_TRIANGLES;
 
 /// Extensions whose effect the diffuse model ignores, when the file uses them.
 const IGNORED_EXTENSIONS: &[&str] = &[

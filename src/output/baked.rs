@@ -32,8 +32,8 @@ use json::buffer::Target;
 use json::mesh::{Mode, Semantic};
 use json::validation::{Checked::Valid, USize64};
 
-use crate::mesh::OutputMesh;
 use crate::error::{Error, Result};
+use crate::mesh::OutputMesh;
 
 /// What the encoder names in its errors.
 const BAKED: &str = "the baked glTF";

@@ -29,9 +29,9 @@ use std::path::Path;
 use ::exr::prelude::*;
 use glam::Vec3;
 
+use crate::error::{Error, Result};
 use crate::mesh::OutputMesh;
 use crate::render::frame::Frame;
-use crate::error::{Error, Result};
 
 /// Width in pixels of both parts of `solution.exr`.
 pub const ROW_WIDTH: usize = 1024;

@@ -21,8 +21,8 @@
 use image::ImageEncoder;
 use image::codecs::png::PngEncoder;
 
-use crate::render::frame::Frame;
 use crate::error::{Error, Result};
+use crate::render::frame::Frame;
 
 /// The fraction of the positive luminances that [`auto_exposure`] keeps
 /// below full scale.

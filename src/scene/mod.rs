@@ -220,10 +220,15 @@ pub struct Scene {
     pub warnings: Vec<String>,
 }
 
+/// Most triangles a scene may hold (after instancing; the loader stops
+/// there); about 4 GB of input triangles, far beyond what the solvers can
+/// handle.
+pub const MAX_TRIANGLES: usize = 1 << 25;
+
 /// Largest accepted magnitude of a world-space vertex coordinate, in metres.
 ///
 /// Visibility runs in f32 (the BVH and its rays): extents, surface areas
-/// (squared extents) and area sums over up to [`crate::load::MAX_TRIANGLES`]
+/// (squared extents) and area sums over up to [`MAX_TRIANGLES`]
 /// primitives must stay finite there, and coordinates near `f32::MAX` make
 /// the BVH builder panic. With |x| ≤ 10¹² m a box is at most 2·10¹² m wide,
 /// a surface area 3·(2·10¹²)² ≈ 1.2·10²⁵ m², and 2²⁵ of those sum to about

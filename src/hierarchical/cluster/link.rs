@@ -38,7 +38,7 @@ pub struct ClusterLink {
 /// Marks a cluster in [`ClusterLink`]'s packed source: patch and cluster
 /// indices stay below it (the loader's triangle cap is far lower).
 const CLUSTER_BIT: u32 = 1 << 31;
-const _: () = assert!(crate::load::MAX_TRIANGLES < CLUSTER_BIT as usize);
+const _: () = assert!(crate::scene::MAX_TRIANGLES < CLUSTER_BIT as usize);
 const _: () = assert!(std::mem::size_of::<ClusterLink>() == 12);
 
 impl ClusterLink {
