@@ -6,6 +6,13 @@
 //! Invariant: parents precede children in the arena, so push-down runs in
 //! arena order and pull-up in reverse; gathers run in parallel over
 //! receivers, each into its own slot.
+//!
+//! Links carry the exposed radiosity. A link hands its receiver the
+//! source's mean radiosity over its *exposed* part: area inside a closed
+//! solid (a floor under a box) is dark and seen by nothing, and averaging
+//! it in would dim the link a second time after its visibility already
+//! did. Leaves measure their exposure (rays along the normal from their
+//! quarters that meet a back face first); push-pull carries it up.
 
 use std::time::Instant;
 

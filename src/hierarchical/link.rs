@@ -30,6 +30,10 @@
 //! stratified points of the two elements, and its spread over the
 //! receiver's quarters (a shadow edge crossing it). N comes from the
 //! caller's plan (the oracle's `rays_needed`); a link records its N.
+//! Visibility is inherited only as a hint: a link refining a wholly
+//! visible one first casts one probe ray per receiver quarter and takes
+//! the full set only when a probe is blocked; the error model still
+//! counts the full set.
 
 use glam::DVec3;
 

@@ -15,6 +15,10 @@
 //!   the full count, so a decision that hangs on V is made on the full
 //!   estimate ([`rays_needed`]); a link whose source brightened past what
 //!   its count allows is resampled first ([`Decision::Resample`]).
+//!   (Deciding on a 4-ray V lost 3.6 % of the Cornell box's light at the
+//!   preview: links whose rays missed a partial shadow were kept, the
+//!   rest split.) A 4-ray link that saw nothing is kept, carrying
+//!   nothing, until the solve ends, so that resampling covers it too.
 
 use glam::DVec3;
 
