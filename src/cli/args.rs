@@ -14,6 +14,7 @@ use glam::DVec3;
 use nusselt::classic::matrix::{Kernel, MatrixSettings};
 use nusselt::hierarchical::oracle::Oracle;
 use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
+use nusselt::load::LoadOptions;
 use nusselt::render::view::ViewOverrides;
 
 /// Threads, seed and quiet, common to every subcommand that computes.
@@ -28,6 +29,25 @@ pub struct Common {
     /// No progress bars and no summary line.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// How the scene is read.
+#[derive(Args, Debug)]
+pub struct LoadArgs {
+    /// Reflectances at or above this are clamped to it.
+    #[arg(long, default_value_t = 0.999)]
+    pub max_reflectance: f64,
+}
+
+impl LoadArgs {
+    /// The loader's options, checked.
+    pub fn options(&self) -> Result<LoadOptions> {
+        let options = LoadOptions {
+            max_reflectance: self.max_reflectance,
+        };
+        super::checked(options.validate())?;
+        Ok(options)
+    }
 }
 
 /// The view and image size, the same for `solve`, `render` and

@@ -11,13 +11,13 @@ use clap::Args;
 
 use nusselt::classic::matrix::FormFactorMatrix;
 use nusselt::classic::surfaces::SurfaceMethod;
-use nusselt::load::{LoadOptions, load_scene};
+use nusselt::load::load_scene;
 use nusselt::pipeline;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use super::args::{Common, KernelArgs};
-use super::{checked, csv_field, init_threads};
+use super::args::{Common, KernelArgs, LoadArgs};
+use super::{csv_field, init_threads};
 
 #[derive(Args, Debug)]
 pub struct FormFactorArgs {
@@ -33,9 +33,8 @@ pub struct FormFactorArgs {
     element_size: Option<f64>,
     #[command(flatten)]
     kernel: KernelArgs,
-    /// Reflectances at or above this are clamped to it.
-    #[arg(long, default_value_t = 0.999)]
-    max_reflectance: f64,
+    #[command(flatten)]
+    load: LoadArgs,
     #[command(flatten)]
     common: Common,
 }
@@ -44,10 +43,7 @@ pub struct FormFactorArgs {
 pub fn run(args: FormFactorArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = LoadOptions {
-        max_reflectance: args.max_reflectance,
-    };
-    checked(options.validate())?;
+    let options = args.load.options()?;
     let mut settings = args.kernel.settings(args.common.seed, 4096)?;
     settings.kernel = args.method.kernel();
     let scene = load_scene(&args.scene, &options)?;

@@ -9,12 +9,12 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use nusselt::load::{LoadOptions, load_scene};
+use nusselt::load::load_scene;
 use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, ViewArgs};
+use super::args::{Common, LoadArgs, ViewArgs};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -32,9 +32,8 @@ pub struct ReferenceArgs {
     /// Russian roulette; never more than 10,000).
     #[arg(long)]
     max_bounces: Option<u32>,
-    /// Reflectances at or above this are clamped to it (as in `solve`).
-    #[arg(long, default_value_t = 0.999)]
-    max_reflectance: f64,
+    #[command(flatten)]
+    load: LoadArgs,
     #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
@@ -45,10 +44,7 @@ pub struct ReferenceArgs {
 pub fn run(args: ReferenceArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = LoadOptions {
-        max_reflectance: args.max_reflectance,
-    };
-    checked(options.validate())?;
+    let options = args.load.options()?;
     let settings = ReferenceSettings {
         samples_per_pixel: args.view.spp,
         seed: args.common.seed,

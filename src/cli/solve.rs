@@ -11,13 +11,13 @@ use clap::Args;
 
 use nusselt::classic::solve::Convergence;
 use nusselt::hierarchical::HierarchicalSettings;
-use nusselt::load::{LoadOptions, load_scene};
+use nusselt::load::load_scene;
 use nusselt::meshing::{MeshMode, MeshSettings};
 use nusselt::pipeline::{self, Method, SolveSettings};
 use nusselt::render::RenderSettings;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, ViewArgs};
+use super::args::{Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, LoadArgs, ViewArgs};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -79,9 +79,8 @@ pub struct SolveArgs {
     /// Render snapshots after these iterations, e.g. 1,2,24,100.
     #[arg(long, value_delimiter = ',')]
     snapshots: Vec<usize>,
-    /// Reflectances at or above this are clamped to it.
-    #[arg(long, default_value_t = 0.999)]
-    max_reflectance: f64,
+    #[command(flatten)]
+    load: LoadArgs,
     #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
@@ -150,10 +149,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let start = Instant::now();
     let progress = Progress::new(!args.common.quiet);
-    let options = LoadOptions {
-        max_reflectance: args.max_reflectance,
-    };
-    checked(options.validate())?;
+    let options = args.load.options()?;
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }

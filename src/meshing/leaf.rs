@@ -18,6 +18,7 @@ use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::mesh::OutputMesh;
 use crate::meshing::point_gather::{PointGather, point_radiosity};
 use crate::scene::{Scene, Shape};
+use crate::util::geometry::{PositionKey, position_key};
 use crate::visibility::TriangleBvh;
 
 /// How the output mesh's vertex values are made.
@@ -89,7 +90,7 @@ fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, Ele
     let mut weight: Vec<f64> = Vec::new();
     for patch in 0..hierarchy.root_count() {
         let normal = scene.patches[patch].normal.as_vec3();
-        let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+        let mut index: HashMap<PositionKey, u32> = HashMap::new();
         let mut stack = vec![hierarchy.root(patch)];
         while let Some(id) = stack.pop() {
             let e = hierarchy.get(id);
@@ -102,7 +103,7 @@ fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, Ele
                 .vertices()
                 .iter()
                 .map(|p| {
-                    let key = p.to_array().map(f64::to_bits);
+                    let key = position_key(*p);
                     *index.entry(key).or_insert_with(|| {
                         mesh.positions.push(p.as_vec3());
                         mesh.normals.push(normal);

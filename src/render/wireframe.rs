@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use crate::mesh::OutputMesh;
 use crate::render::mesh_bvh;
 use crate::render::view::View;
+use crate::util::geometry::{PositionKey, position_key};
 use crate::visibility::TriangleBvh;
 
 /// Near clipping depth, as a fraction of the mesh's bounding-box diagonal.
@@ -72,7 +73,7 @@ pub fn wireframe_mask(mesh: &OutputMesh, view: &View) -> Vec<f32> {
 /// The distinct edges of the mesh's triangles as endpoint pairs, in a fixed
 /// order; degenerate and invalid ones left out.
 fn distinct_edges(mesh: &OutputMesh) -> Vec<[DVec3; 2]> {
-    let mut keys: Vec<[[u32; 3]; 2]> = Vec::with_capacity(3 * mesh.triangles.len());
+    let mut keys: Vec<[PositionKey; 2]> = Vec::with_capacity(3 * mesh.triangles.len());
     for tri in &mesh.triangles {
         for k in 0..3 {
             let ends = [tri[k], tri[(k + 1) % 3]].map(|i| mesh.positions.get(i as usize));
@@ -80,9 +81,7 @@ fn distinct_edges(mesh: &OutputMesh) -> Vec<[DVec3; 2]> {
             if !(a.is_finite() && b.is_finite()) {
                 continue;
             }
-            // `+ 0.0` folds −0 into +0 so that equal positions share a key.
-            let (ka, kb) = ((*a + 0.0).to_array(), (*b + 0.0).to_array());
-            let (ka, kb) = (ka.map(f32::to_bits), kb.map(f32::to_bits));
+            let (ka, kb) = (position_key(a.as_dvec3()), position_key(b.as_dvec3()));
             if ka != kb {
                 keys.push([ka.min(kb), ka.max(kb)]);
             }
@@ -91,7 +90,7 @@ fn distinct_edges(mesh: &OutputMesh) -> Vec<[DVec3; 2]> {
     keys.sort_unstable();
     keys.dedup();
     keys.iter()
-        .map(|k| k.map(|p| DVec3::from(p.map(|c| f64::from(f32::from_bits(c))))))
+        .map(|k| k.map(|p| DVec3::from(p.map(f64::from_bits))))
         .collect()
 }
 
