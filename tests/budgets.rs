@@ -7,7 +7,6 @@ use nusselt::hierarchical::{
     Accuracy, Budget, BudgetHit, Clustering, HierarchicalSettings, memory_estimate,
     solve_hierarchical_guided,
 };
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::{SolveRun, SolveSettings, solve};
 use nusselt::render::RenderSettings;
 use nusselt::render::view::ViewOverrides;
@@ -15,15 +14,7 @@ use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use crate::util::{assert_user_error, nusselt, on_threads};
-
-fn cornell_path() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf")
-}
-
-fn cornell() -> Scene {
-    load_scene(&cornell_path(), &LoadOptions::default()).unwrap()
-}
+use crate::fixtures::{assert_user_error, cornell, nusselt, on_threads, scene_path};
 
 /// The default preset and output mesh (discontinuity: guided refinement
 /// included), a tiny image.
@@ -253,7 +244,7 @@ fn budgeted_solve_is_thread_independent() {
 #[test]
 fn cli_max_elements_writes_the_budget_to_the_report() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = cornell_path();
+    let scene = scene_path("cornell-box.gltf");
     let out = nusselt(
         &[
             "solve",
@@ -288,7 +279,7 @@ fn cli_max_elements_writes_the_budget_to_the_report() {
 #[test]
 fn cli_refuses_bad_budgets() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = cornell_path();
+    let scene = scene_path("cornell-box.gltf");
     let scene = scene.to_str().unwrap();
     for (flag, value) in [
         ("--max-elements", "0"),

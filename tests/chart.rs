@@ -8,7 +8,7 @@ use nusselt::lab::chart::{Axis, CHART_SIZE, LineChart, Series, draw_line_chart};
 use nusselt::lab::convergence::{convergence_charts, read_convergence, run_labels};
 use nusselt::report::{HistoryEntry, Report};
 
-use crate::util::{assert_user_error, nusselt};
+use crate::fixtures::{assert_user_error, nusselt};
 
 /// A report as `nusselt solve` writes it, with a geometric residual decay.
 fn report(method: &str, iterations: usize, rate: f64, seconds_per_iteration: f64) -> Report {

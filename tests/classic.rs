@@ -7,9 +7,11 @@ use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::classic::solve::{ClassicMethod, Convergence, System, solve};
 use nusselt::classic::uniform::UniformMesh;
 use nusselt::formfactor::form_factor_polygon_polygon;
-use nusselt::scene::{InputTriangle, Material, Scene, Surface};
+use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
+
+use crate::fixtures::furnace_box;
 
 const METHODS: [ClassicMethod; 4] = [
     ClassicMethod::Direct,
@@ -17,51 +19,6 @@ const METHODS: [ClassicMethod; 4] = [
     ClassicMethod::GaussSeidel,
     ClassicMethod::Shooting,
 ];
-
-/// A closed box (sides `size`) seen from inside, every face emitting
-/// radiance `le` with reflectance `rho`.
-pub fn furnace_box(size: DVec3, le: f64, rho: f64) -> Scene {
-    furnace_box_rgb(size, DVec3::splat(le), rho)
-}
-
-/// [`furnace_box`] with a per-channel emitted radiance.
-pub fn furnace_box_rgb(size: DVec3, le: DVec3, rho: f64) -> Scene {
-    let s = size;
-    let p = |x: f64, y: f64, z: f64| DVec3::new(x * s.x, y * s.y, z * s.z);
-    let quads = [
-        [p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)],
-        [p(0., 1., 0.), p(1., 1., 0.), p(1., 1., 1.), p(0., 1., 1.)],
-        [p(0., 0., 0.), p(1., 0., 0.), p(1., 1., 0.), p(0., 1., 0.)],
-        [p(0., 0., 1.), p(0., 1., 1.), p(1., 1., 1.), p(1., 0., 1.)],
-        [p(0., 0., 0.), p(0., 1., 0.), p(0., 1., 1.), p(0., 0., 1.)],
-        [p(1., 0., 0.), p(1., 0., 1.), p(1., 1., 1.), p(1., 1., 0.)],
-    ];
-    let mut tris = Vec::new();
-    for (k, q) in quads.iter().enumerate() {
-        for t in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-            tris.push(InputTriangle {
-                positions: t,
-                material: 0,
-                surface: k as u32,
-                reflectance: DVec3::splat(rho),
-                emitted_radiance: le,
-            });
-        }
-    }
-    let material = Material {
-        name: "furnace".into(),
-        reflectance: DVec3::splat(rho),
-        emitted_radiance: le,
-        double_sided: false,
-    };
-    let surfaces = (0..6)
-        .map(|k| Surface {
-            name: format!("face{k}"),
-            node: k,
-        })
-        .collect();
-    Scene::build(tris, vec![material], surfaces, vec![], vec![]).unwrap()
-}
 
 fn bvh(scene: &Scene) -> TriangleBvh {
     nusselt::visibility::TriangleBvh::of_scene(scene)

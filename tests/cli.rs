@@ -3,7 +3,7 @@
 
 use std::fs;
 
-use crate::util::{TestMesh, assert_user_error, gltf_json, inward_box, nusselt};
+use crate::fixtures::{TestMesh, assert_user_error, gltf_json, inward_box, nusselt};
 
 fn write(dir: &std::path::Path, name: &str, text: &str) -> String {
     let p = dir.join(name);

@@ -8,7 +8,7 @@ use nusselt::formfactor::{
 use nusselt::sampling::stream;
 use std::f64::consts::PI;
 
-pub use nusselt::formfactor::closed_form::{c11, c14, discs};
+use nusselt::formfactor::closed_form::{c11, c14, discs};
 
 fn rect_xy(a: f64, b: f64, z: f64, up: bool) -> Vec<DVec3> {
     let mut v = vec![

@@ -11,143 +11,12 @@ use nusselt::hierarchical::{
 };
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::point_gather::dark_emitters;
-use nusselt::scene::{InputTriangle, Material, Scene, Surface};
+use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use super::scenes::scenegen::write_scale;
-use super::util;
-
-/// The quad `q` (counter-clockwise seen from the front) as an n × n grid
-/// of quads, two triangles each.
-fn grid(q: [DVec3; 4], n: usize, surface: u32, material: u32, out: &mut Vec<InputTriangle>) {
-    let at = |i: usize, j: usize| {
-        let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-        (1.0 - u) * (1.0 - v) * q[0] + u * (1.0 - v) * q[1] + u * v * q[2] + (1.0 - u) * v * q[3]
-    };
-    for i in 0..n {
-        for j in 0..n {
-            let c = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
-            for positions in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
-                out.push(InputTriangle {
-                    positions,
-                    material,
-                    surface,
-                    reflectance: DVec3::ZERO,
-                    emitted_radiance: DVec3::ZERO,
-                });
-            }
-        }
-    }
-}
-
-/// The six faces of the box [lo, hi], counter-clockwise seen from outside
-/// (reverse each for the inside), bottom face first.
-fn box_faces(lo: DVec3, hi: DVec3) -> [[DVec3; 4]; 6] {
-    let p = |x: f64, y: f64, z: f64| {
-        DVec3::new(
-            lo.x + x * (hi.x - lo.x),
-            lo.y + y * (hi.y - lo.y),
-            lo.z + z * (hi.z - lo.z),
-        )
-    };
-    [
-        [p(0., 0., 0.), p(1., 0., 0.), p(1., 0., 1.), p(0., 0., 1.)],
-        [p(0., 1., 0.), p(0., 1., 1.), p(1., 1., 1.), p(1., 1., 0.)],
-        [p(0., 0., 0.), p(0., 1., 0.), p(1., 1., 0.), p(1., 0., 0.)],
-        [p(0., 0., 1.), p(1., 0., 1.), p(1., 1., 1.), p(0., 1., 1.)],
-        [p(0., 0., 0.), p(0., 0., 1.), p(0., 1., 1.), p(0., 1., 0.)],
-        [p(1., 0., 0.), p(1., 1., 0.), p(1., 1., 1.), p(1., 0., 1.)],
-    ]
-}
-
-/// How [`room`] is lit and furnished.
-#[derive(Clone, Copy)]
-pub(crate) struct Room {
-    /// Grid cells per face side.
-    pub n: usize,
-    /// Boxes standing on the floor (open at the bottom: the floor under
-    /// them is buried), or floating 0.3 m above it (closed).
-    pub blocks: usize,
-    pub floating: bool,
-    pub rho: f64,
-    /// Every surface emits E = π W/m² (a furnace); else only a 1 m² ceiling
-    /// panel does.
-    pub furnace: bool,
-}
-
-/// A closed 4 × 3 × 5 m room, each face an n × n grid, with boxes (n/2 ×
-/// n/2 grids per face) as `spec` says; reflectance ρ everywhere but the
-/// panel.
-pub(crate) fn room(spec: Room) -> Scene {
-    let Room {
-        n,
-        blocks,
-        floating,
-        rho,
-        furnace,
-    } = spec;
-    let mut quads = Vec::new();
-    for q in box_faces(DVec3::ZERO, DVec3::new(4.0, 3.0, 5.0)) {
-        quads.push(([q[0], q[3], q[2], q[1]], n, false));
-    }
-    let y = 2.99;
-    let lamp = [
-        DVec3::new(1.5, y, 2.0),
-        DVec3::new(2.5, y, 2.0),
-        DVec3::new(2.5, y, 3.0),
-        DVec3::new(1.5, y, 3.0),
-    ];
-    if !furnace {
-        quads.push((lamp, 1, true));
-    }
-    let lift = if floating { 0.3 } else { 0.0 };
-    for b in 0..blocks {
-        let x = 0.4 + 1.2 * b as f64;
-        let lo = DVec3::new(x, lift, 0.6 + 0.9 * b as f64);
-        let hi = lo + DVec3::new(0.8, 0.5 + 0.3 * b as f64, 0.7);
-        let faces = box_faces(lo, hi);
-        for q in &faces[usize::from(!floating)..] {
-            quads.push((*q, (n / 2).max(1), false));
-        }
-    }
-    painted(&quads, rho, if furnace { 1.0 } else { 0.0 })
-}
-
-/// A scene of quads, each an n × n grid (counter-clockwise seen from the
-/// front, one surface each): a wall (reflectance `rho`, radiance `glow`)
-/// or, when marked, a black lamp of radiance 1.
-fn painted(quads: &[([DVec3; 4], usize, bool)], rho: f64, glow: f64) -> Scene {
-    let mut tris = Vec::new();
-    let mut surfaces = Vec::new();
-    for (s, &(q, n, lamp)) in quads.iter().enumerate() {
-        surfaces.push(Surface {
-            name: format!("s{s}"),
-            node: s,
-        });
-        grid(q, n, s as u32, u32::from(lamp), &mut tris);
-    }
-    let materials = vec![
-        Material {
-            name: "wall".into(),
-            reflectance: DVec3::splat(rho),
-            emitted_radiance: DVec3::splat(glow),
-            double_sided: false,
-        },
-        Material {
-            name: "lamp".into(),
-            reflectance: DVec3::ZERO,
-            emitted_radiance: DVec3::ONE,
-            double_sided: false,
-        },
-    ];
-    for t in &mut tris {
-        let m = &materials[t.material as usize];
-        t.reflectance = m.reflectance;
-        t.emitted_radiance = m.emitted_radiance;
-    }
-    Scene::build(tris, materials, surfaces, vec![], vec![]).unwrap()
-}
+use crate::fixtures::scenegen::write_scale;
+use crate::fixtures::{LIT_ROOM, Room, on_threads, painted, room};
 
 fn solve(scene: &Scene, clustering: Clustering, accuracy: Accuracy) -> HierarchicalSolution {
     let settings = HierarchicalSettings {
@@ -194,21 +63,13 @@ fn patch_difference(scene: &Scene, a: &HierarchicalSolution, b: &HierarchicalSol
     num / den
 }
 
-pub(crate) const LIT: Room = Room {
-    n: 6,
-    blocks: 3,
-    floating: false,
-    rho: 0.5,
-    furnace: false,
-};
-
 #[test]
 fn clusters_agree_with_patch_pairs_and_keep_the_enclosure_balance() {
     // Measured (preview): absorbed / emitted 0.990 without clusters, 0.989
     // with; patches differ by 0.4 % area-weighted. The cluster oracle
     // bounds each link's error, not their sum: stated tolerances 2 % on
     // the balance, 3 % on the patches.
-    let scene = room(LIT);
+    let scene = room(LIT_ROOM);
     let off = solve(&scene, Clustering::Off, Accuracy::preview());
     let on = solve(&scene, Clustering::On, Accuracy::preview());
     let (ratio_off, _) = balance(&scene, &off);
@@ -250,7 +111,7 @@ fn furnace_identity_holds_with_clusters() {
         floating: true,
         furnace: true,
         rho,
-        ..LIT
+        ..LIT_ROOM
     });
     let s = solve(&scene, Clustering::On, Accuracy::preview());
     let exact = std::f64::consts::PI / (1.0 - rho);
@@ -276,10 +137,10 @@ fn furnace_identity_holds_with_clusters() {
 
 #[test]
 fn same_solution_for_one_and_two_threads_with_clusters() {
-    let scene = room(LIT);
+    let scene = room(LIT_ROOM);
     let run = || solve(&scene, Clustering::On, Accuracy::preview());
-    let one = util::on_threads(1, run);
-    let two = util::on_threads(2, run);
+    let one = on_threads(1, run);
+    let two = on_threads(2, run);
     assert_eq!(one.link_count(), two.link_count());
     assert_eq!(one.visibility_rays, two.visibility_rays);
     let b = |s: &HierarchicalSolution| -> Vec<[f64; 3]> {

@@ -14,7 +14,7 @@ use nusselt::lab::compare::{
 use nusselt::output::exr::{decode_image, encode_image};
 use nusselt::render::frame::Frame;
 
-use crate::util::{assert_user_error, nusselt};
+use crate::fixtures::{assert_user_error, nusselt};
 
 /// A `w × h` image of one colour.
 fn flat(w: u32, h: u32, rgb: [f32; 3]) -> Frame {

@@ -11,12 +11,14 @@ use std::process::Command;
 
 use serde_json::Value;
 
+use crate::fixtures::scene_arg;
+
 /// Runs `nusselt solve` on the bundled penumbra scene with
 /// `RAYON_NUM_THREADS=threads`, writing to `dir/out`.
 fn solve(dir: &Path, out: &str, threads: usize, mesh: &str) {
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/penumbra.gltf");
+    let scene = scene_arg("penumbra.gltf");
     let result = Command::new(env!("CARGO_BIN_EXE_nusselt"))
-        .args(["solve", &scene.to_string_lossy(), "-q", "-o", out])
+        .args(["solve", &scene, "-q", "-o", out])
         .args(["--accuracy", "preview", "--mesh", mesh, "--seed", "7"])
         .args(["--width", "48", "--height", "32", "--spp", "4"])
         .env("RAYON_NUM_THREADS", threads.to_string())

@@ -1,20 +1,18 @@
 //! Discontinuity segments: a closed-form umbra/penumbra configuration, the
 //! Cornell box's contact lines, unoccluded emitters, determinism (thread
-//! count and BVH shape, on the Cornell box and the three-room scene) and a
-//! timing on the three-room scene.
+//! count and BVH shape, on the Cornell box and the three-room scene) and
+//! bounds on the work done on the three-room scene (wedges, rays, segments).
 
-use std::path::Path;
 use std::time::Instant;
 
 use glam::DVec3;
 use nusselt::discontinuity::{
     Discontinuities, DiscontinuitySettings, Segment, SegmentKind, discontinuity_segments,
 };
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
 use nusselt::visibility::TriangleBvh;
 
-use crate::classic::furnace_box;
+use crate::fixtures::{bundled_scene, cornell, furnace_box, on_threads};
 
 /// Axis-aligned square at height `z`, half-size `h`, facing up or down.
 fn square(z: f64, h: f64, up: bool) -> [[DVec3; 3]; 2] {
@@ -204,16 +202,9 @@ fn unoccluded_emitters_give_no_segments() {
     assert_eq!(d.stats.wedges, 0);
 }
 
-fn load(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
-    load_scene(&path, &LoadOptions::default()).unwrap()
-}
-
 #[test]
 fn cornell_floor_gets_block_contacts_and_penumbrae() {
-    let scene = load("cornell-box.gltf");
+    let scene = cornell();
     let bvh = TriangleBvh::of_scene(&scene);
     let (d, secs) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
@@ -294,12 +285,11 @@ fn cornell_floor_gets_block_contacts_and_penumbrae() {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let scene = load("cornell-box.gltf");
+    let scene = cornell();
     let bvh = TriangleBvh::of_scene(&scene);
     let settings = DiscontinuitySettings::default();
-    let with = |threads: usize| {
-        crate::util::on_threads(threads, || discontinuity_segments(&scene, &bvh, &settings))
-    };
+    let with =
+        |threads: usize| on_threads(threads, || discontinuity_segments(&scene, &bvh, &settings));
     let one = with(1);
     let two = with(2);
     assert!(!one.segments.is_empty());
@@ -314,10 +304,10 @@ fn results_do_not_depend_on_the_thread_count() {
 /// nothing either: the segments are compared bit for bit.
 #[test]
 fn three_rooms_segments_are_identical_for_one_and_two_threads() {
-    let scene = load("three-rooms.gltf");
+    let scene = bundled_scene("three-rooms.gltf");
     let settings = DiscontinuitySettings::default();
     let with = |threads: usize| {
-        crate::util::on_threads(threads, || {
+        on_threads(threads, || {
             discontinuity_segments(&scene, &TriangleBvh::of_scene(&scene), &settings)
         })
     };
@@ -357,7 +347,7 @@ fn three_rooms_segments_are_identical_for_one_and_two_threads() {
 
 #[test]
 fn budget_keeps_contacts_and_the_heaviest_segments() {
-    let scene = load("cornell-box.gltf");
+    let scene = cornell();
     let bvh = TriangleBvh::of_scene(&scene);
     let full = discontinuity_segments(&scene, &bvh, &DiscontinuitySettings::default());
     let contacts = full
@@ -404,9 +394,14 @@ fn budget_keeps_contacts_and_the_heaviest_segments() {
     assert!(d0.segments.iter().all(|s| s.kind == SegmentKind::Contact));
 }
 
+/// The work of one run on the three-room scene stays within twice what it
+/// was when measured (1 luminaire, 1 246 silhouette edges, 3 086 wedges,
+/// 46 400 rays, 1 619 raw and 1 101 merged segments: 423 contact, 533 VE,
+/// 145 EV), none dropped by the budget. The rays and wedges are what the
+/// run's time follows; the time itself is only printed.
 #[test]
-fn three_rooms_stays_affordable() {
-    let scene = load("three-rooms.gltf");
+fn three_rooms_work_stays_within_twice_the_measured_counts() {
+    let scene = bundled_scene("three-rooms.gltf");
     let bvh = TriangleBvh::of_scene(&scene);
     let (d, secs) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);
@@ -424,14 +419,27 @@ fn three_rooms_stays_affordable() {
     assert!(count(SegmentKind::Contact) > 0);
     assert!(count(SegmentKind::Ve) + count(SegmentKind::Ev) > 0);
     assert!(d.segments.len() <= DiscontinuitySettings::default().max_segments);
-    assert!(secs < 60.0, "took {secs:.1} s");
+    let s = &d.stats;
+    assert!(s.luminaires <= 2, "{s:?}");
+    assert!(s.silhouette_edges <= 2 * 1_246, "{s:?}");
+    assert!(s.wedges <= 2 * 3_086, "{s:?}");
+    assert!(s.rays <= 2 * 46_400, "{s:?}");
+    assert!(s.raw_segments <= 2 * 1_619, "{s:?}");
+    assert_eq!(s.dropped_by_budget, 0, "{s:?}");
+    assert!(
+        d.segments.len() <= 2 * 1_101,
+        "{} segments",
+        d.segments.len()
+    );
+    assert!(count(SegmentKind::Contact) <= 2 * 423);
+    assert!(count(SegmentKind::Ve) + count(SegmentKind::Ev) <= 2 * (533 + 145));
 }
 
 /// Occluder edges are classified without trusting the winding: flipping
 /// every triangle of both blocks leaves the floor's segments unchanged.
 #[test]
 fn block_winding_does_not_change_floor_segments() {
-    let scene = load("cornell-box.gltf");
+    let scene = cornell();
     let floor_segments = |scene: &Scene| {
         let bvh = TriangleBvh::of_scene(scene);
         let d = discontinuity_segments(scene, &bvh, &DiscontinuitySettings::default());

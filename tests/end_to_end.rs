@@ -5,19 +5,13 @@ use std::fs;
 use std::path::Path;
 
 use glam::DVec3;
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::output;
 use nusselt::render::{RenderSettings, render};
 use nusselt::report::Report;
 
-use crate::util::{gltf_json, inward_box, nusselt};
-
-fn repo(path: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join(path)
-        .to_string_lossy()
-        .into_owned()
-}
+use crate::fixtures::{
+    assert_user_error, bundled_scene, gltf_json, inward_box, nusselt, scene_arg,
+};
 
 fn read_report(dir: &Path) -> Report {
     serde_json::from_slice(&fs::read(dir.join("report.json")).unwrap()).unwrap()
@@ -26,7 +20,7 @@ fn read_report(dir: &Path) -> Report {
 #[test]
 fn cornell_box_outputs_agree_with_the_solution() {
     let dir = tempfile::tempdir().unwrap();
-    let scene_path = repo("scenes/cornell-box.gltf");
+    let scene_path = scene_arg("cornell-box.gltf");
     let out = nusselt(
         &[
             "solve",
@@ -76,7 +70,7 @@ fn cornell_box_outputs_agree_with_the_solution() {
 
     // Energy: what the surfaces absorb never exceeds what is emitted, and in
     // this nearly closed box (open front only) most of it is absorbed.
-    let scene = load_scene(Path::new(&scene_path), &LoadOptions::default()).unwrap();
+    let scene = bundled_scene("cornell-box.gltf");
     let phi = scene.emitted_power();
     for c in 0..3 {
         assert!((report.power.emitted[c] - phi[c]).abs() < 1e-6 * phi[c]);
@@ -218,7 +212,7 @@ fn closed_box_conserves_energy_and_is_thread_independent() {
 #[test]
 fn every_method_and_snapshots_on_the_goral_box() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = repo("scenes/goral-box.gltf");
+    let scene = scene_arg("goral-box.gltf");
     let mut totals = Vec::new();
     for method in ["direct", "jacobi", "gauss-seidel", "shooting"] {
         let out = nusselt(
@@ -277,7 +271,7 @@ fn every_method_and_snapshots_on_the_goral_box() {
 #[test]
 fn render_command_reproduces_the_solve_view() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = repo("scenes/goral-box.gltf");
+    let scene = scene_arg("goral-box.gltf");
     let args = [
         "solve",
         &scene,
@@ -322,14 +316,14 @@ fn render_command_reproduces_the_solve_view() {
     );
     // A missing solution is a clean error.
     let out = nusselt(&["render", "nope/solution.exr", "-o", "x.exr"], dir.path());
-    crate::util::assert_user_error(&out, "nope/solution.exr");
+    assert_user_error(&out, "nope/solution.exr");
 }
 
 #[test]
 fn formfactors_command_matches_closed_forms() {
     let dir = tempfile::tempdir().unwrap();
     let out = nusselt(
-        &["formfactors", &repo("scenes/two-squares.gltf"), "-q"],
+        &["formfactors", &scene_arg("two-squares.gltf"), "-q"],
         dir.path(),
     );
     assert!(
@@ -351,7 +345,7 @@ fn formfactors_command_matches_closed_forms() {
         let out = nusselt(
             &[
                 "formfactors",
-                &repo("scenes/goral-box.gltf"),
+                &scene_arg("goral-box.gltf"),
                 "--method",
                 method,
                 "-q",

@@ -8,13 +8,11 @@
 //! panic or produce a non-finite value, and every row of the table is
 //! written.
 
-use std::path::Path;
-
 use nusselt::lab::failures::{
     self, Outcome, Quantity, SceneTable, TableMethod, TableSettings, closed_form,
 };
 
-use crate::stress::stress_scene;
+use crate::fixtures::{scene_path, slow_tests, stress_scene};
 
 fn small() -> TableSettings {
     TableSettings {
@@ -117,10 +115,10 @@ fn the_table_measures_exact_scenes_exactly() {
 
 #[test]
 fn every_method_survives_every_stress_scene() {
-    if std::env::var_os("NUSSELT_SLOW_TESTS").is_none_or(|v| v != "1") {
+    if !slow_tests("failure_table::every_method_survives_every_stress_scene") {
         return;
     }
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stress");
+    let dir = scene_path("stress");
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| {

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 
 use nusselt::load::{LoadOptions, load_scene_from_slice};
 
+use crate::fixtures::slow_tests;
+
 /// The body of `fuzz/fuzz_targets/load_gltf.rs`.
 fn fuzz_body(data: &[u8]) {
     let _ = load_scene_from_slice(data, None, &LoadOptions::default());
@@ -132,7 +134,7 @@ fn pipeline_corpus_and_regressions_keep_the_invariants() {
 #[test]
 fn fuzz_bodies_survive_pseudo_random_inputs() {
     use rand::{Rng, SeedableRng};
-    if std::env::var_os("NUSSELT_SLOW_TESTS").is_none_or(|v| v != "1") {
+    if !slow_tests("fuzz_corpus::fuzz_bodies_survive_pseudo_random_inputs") {
         return;
     }
     let mut rng = rand_pcg::Pcg32::seed_from_u64(0x6675_7a7a);

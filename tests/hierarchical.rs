@@ -10,18 +10,12 @@ use nusselt::classic::uniform::UniformMesh;
 use nusselt::hierarchical::{
     Accuracy, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
 };
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::leaf::{VertexValues, leaf_output_mesh, output_mesh};
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use crate::classic::furnace_box;
-
-fn cornell() -> Scene {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
-    load_scene(&path, &LoadOptions::default()).unwrap()
-}
+use crate::fixtures::{cornell, furnace_box, on_threads};
 
 fn run(scene: &Scene, settings: &HierarchicalSettings) -> HierarchicalSolution {
     let bvh = TriangleBvh::of_scene(scene);
@@ -113,7 +107,7 @@ fn furnace_within_the_stated_tolerance() {
 
 /// Patch-average radiosity of a fine uniform mesh (point-polygon kernel,
 /// 16 rays per pair, Jacobi to 1e-9).
-pub(crate) fn uniform_reference(scene: &Scene, fraction: f64) -> Vec<DVec3> {
+fn uniform_reference(scene: &Scene, fraction: f64) -> Vec<DVec3> {
     let mesh = UniformMesh::new(scene, scene.diagonal() * fraction);
     let bvh = TriangleBvh::of_scene(scene);
     let settings = MatrixSettings {
@@ -311,7 +305,7 @@ fn no_light_leaks_under_the_blocks() {
 fn same_radiosities_for_one_and_two_threads() {
     let scene = cornell();
     let settings = with(Accuracy::preview());
-    let solve_on = |threads: usize| crate::util::on_threads(threads, || run(&scene, &settings));
+    let solve_on = |threads: usize| on_threads(threads, || run(&scene, &settings));
     let (one, two) = (solve_on(1), solve_on(2));
     assert_eq!(one.hierarchy.elements, two.hierarchy.elements);
     assert_eq!(one.links, two.links);

@@ -12,7 +12,7 @@ use nusselt::render::view::{View, ViewOverrides};
 use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 
-use crate::clustering::{LIT, room};
+use crate::fixtures::{LIT_ROOM, room};
 
 /// A narrow view of one corner of the test room, its first box in front.
 fn corner() -> ViewOverrides {
@@ -42,7 +42,7 @@ fn run(scene: &Scene, importance: bool) -> SolveRun {
 
 #[test]
 fn importance_is_as_accurate_in_view_with_fewer_elements() {
-    let scene = room(LIT);
+    let scene = room(LIT_ROOM);
     let view = View::resolve(None, scene.bounds, &corner()).unwrap();
     let reference = render_reference(
         &scene,

@@ -11,7 +11,6 @@ use nusselt::hierarchical::{
     Accuracy, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
     solve_hierarchical_guided,
 };
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::meshing::point_gather::{LinkRays, PointEvaluator};
 use nusselt::meshing::{MeshMode, MeshSettings, MeshStats, build_mesh};
@@ -19,10 +18,7 @@ use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-fn cornell() -> Scene {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
-    load_scene(&path, &LoadOptions::default()).unwrap()
-}
+use crate::fixtures::{cornell, on_threads};
 
 fn preview() -> HierarchicalSettings {
     HierarchicalSettings {
@@ -31,14 +27,14 @@ fn preview() -> HierarchicalSettings {
     }
 }
 
-pub struct Solved {
+struct Solved {
     pub scene: Scene,
     pub bvh: TriangleBvh,
     pub guide: Vec<Vec<Segment>>,
     pub solution: HierarchicalSolution,
 }
 
-pub fn solved_cornell(guided: bool) -> Solved {
+fn solved_cornell(guided: bool) -> Solved {
     let scene = cornell();
     let bvh = TriangleBvh::of_scene(&scene);
     let guide = discontinuity_segments(&scene, &bvh, &DiscontinuitySettings::default())
@@ -56,7 +52,7 @@ pub fn solved_cornell(guided: bool) -> Solved {
     }
 }
 
-pub fn mesh(s: &Solved, mode: MeshMode) -> (OutputMesh, MeshStats) {
+fn mesh(s: &Solved, mode: MeshMode) -> (OutputMesh, MeshStats) {
     let settings = MeshSettings {
         mode,
         ..MeshSettings::default()
@@ -64,7 +60,7 @@ pub fn mesh(s: &Solved, mode: MeshMode) -> (OutputMesh, MeshStats) {
     build_mesh(&s.scene, &s.bvh, &s.solution, &s.guide, &settings).unwrap()
 }
 
-pub fn key(p: Vec3) -> [u32; 3] {
+fn key(p: Vec3) -> [u32; 3] {
     p.to_array().map(f32::to_bits)
 }
 
@@ -347,7 +343,7 @@ fn the_hierarchy_follows_the_discontinuities() {
 #[test]
 fn same_mesh_for_one_and_two_threads() {
     let build = |threads: usize| {
-        crate::util::on_threads(threads, || {
+        on_threads(threads, || {
             let s = solved_cornell(true);
             mesh(&s, MeshMode::Discontinuity).0
         })

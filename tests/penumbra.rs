@@ -22,12 +22,9 @@
 //! The geometry is read from the loaded scene (surfaces `floor`,
 //! `occluder`, `emitter`), never restated here.
 
-use std::path::Path;
-
 use glam::{DVec2, DVec3, Vec3};
 use nusselt::formfactor::form_factor_point_polygon;
 use nusselt::hierarchical::Accuracy;
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::pipeline::{SolveSettings, solve};
 use nusselt::scene::{Scene, Shape, polygon_area_normal};
@@ -35,9 +32,11 @@ use nusselt::util::progress::Progress;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
+use crate::fixtures::bundled_scene;
+
 /// The three squares of the penumbra scene and the closed form over them.
 #[derive(Clone, Debug)]
-pub struct Penumbra {
+struct Penumbra {
     /// Index of the floor patch in `Scene::patches`.
     pub floor_patch: u32,
     /// Floor corners, counter-clockwise seen from above.
@@ -53,9 +52,8 @@ pub struct Penumbra {
 }
 
 /// Loads `scenes/penumbra.gltf` and reads its closed form.
-pub fn load() -> (Scene, Penumbra) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/penumbra.gltf");
-    let scene = load_scene(&path, &LoadOptions::default()).unwrap();
+fn load() -> (Scene, Penumbra) {
+    let scene = bundled_scene("penumbra.gltf");
     let penumbra = Penumbra::from_scene(&scene);
     (scene, penumbra)
 }
@@ -63,7 +61,7 @@ pub fn load() -> (Scene, Penumbra) {
 /// The convex polygon `subject` clipped to the convex polygon `clip`, both
 /// in one plane with unit normal `normal`, either winding (Sutherland–
 /// Hodgman). Empty when they do not overlap.
-pub fn clip_convex(subject: &[DVec3], clip: &[DVec3], normal: DVec3) -> Vec<DVec3> {
+fn clip_convex(subject: &[DVec3], clip: &[DVec3], normal: DVec3) -> Vec<DVec3> {
     let (_, clip_normal) = polygon_area_normal(clip);
     let orient = clip_normal.dot(normal).signum();
     let mut out = subject.to_vec();

@@ -5,26 +5,18 @@
 //! Slower, tighter variants run with NUSSELT_SLOW_TESTS=1.
 
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use nusselt::formfactor::form_factor_point_polygon;
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::reference::{ReferenceImage, ReferenceSettings, ReferenceStats, render_reference};
 use nusselt::render::frame::Frame;
 use nusselt::render::view::{View, ViewOverrides};
 use nusselt::scene::{InputTriangle, Material, Scene, Surface};
 use nusselt::util::progress::Progress;
 
-use crate::util::{assert_user_error, nusselt};
-
-fn slow() -> bool {
-    std::env::var_os("NUSSELT_SLOW_TESTS").is_some_and(|v| v == "1")
-}
-
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use crate::fixtures::{
+    assert_user_error, bundled_scene, furnace_box_rgb, nusselt, on_threads, scene_path, slow_tests,
+};
 
 fn settings(spp: u32, seed: u64) -> ReferenceSettings {
     ReferenceSettings {
@@ -53,7 +45,7 @@ fn view(eye: DVec3, target: DVec3, up: DVec3, fov_deg: f64, side: u32) -> View {
 /// A unit cube seen from inside, every face emitting radiance `le` and
 /// reflecting `rho`.
 fn furnace(le: DVec3, rho: f64) -> Scene {
-    crate::classic::furnace_box_rgb(DVec3::ONE, le, rho)
+    furnace_box_rgb(DVec3::ONE, le, rho)
 }
 
 /// Per channel: the image mean, and the standard error of that mean from
@@ -118,7 +110,10 @@ fn furnace_radiance_is_emission_over_one_minus_reflectance() {
     let le = DVec3::new(0.3, 0.6, 0.9);
     let centre = DVec3::splat(0.5);
     let v = view(centre, DVec3::new(0.4, 0.3, 0.0), DVec3::Y, 90.0, 16);
-    let (spp, rhos): (u32, &[f64]) = if slow() {
+    let slow = slow_tests(
+        "the 256-spp, ρ 0.95 variant of reference::furnace_radiance_is_emission_over_one_minus_reflectance",
+    );
+    let (spp, rhos): (u32, &[f64]) = if slow {
         (256, &[0.5, 0.8, 0.95])
     } else {
         (64, &[0.5, 0.8])
@@ -233,7 +228,10 @@ fn parallel_squares_match_howell_c11_and_lambert() {
     let side = 40;
     let (first, cells) = (10, 20);
     let v = view(DVec3::new(0.0, 0.0, 0.9), DVec3::ZERO, DVec3::Y, fov, side);
-    let spp = if slow() { 4096 } else { 256 };
+    let slow = slow_tests(
+        "the 4096-spp variant of reference::parallel_squares_match_howell_c11_and_lambert",
+    );
+    let spp = if slow { 4096 } else { 256 };
     let r = trace(&scene, &v, &settings(spp, 11));
     let emitter = scene.patches[scene.triangles[0].front_patch as usize].vertices();
     // The image-plane point (px, py) maps to the receiver point under it.
@@ -338,7 +336,7 @@ fn crop(f: &Frame, start: u32, side: u32) -> Frame {
 }
 
 fn cornell(side: u32) -> (Scene, View) {
-    let scene = load_scene(&repo("scenes/cornell-box.gltf"), &LoadOptions::default()).unwrap();
+    let scene = bundled_scene("cornell-box.gltf");
     let o = ViewOverrides {
         width: Some(side),
         height: Some(side),
@@ -364,7 +362,9 @@ fn noise_image_predicts_the_real_error() {
     // The image-wide error is dominated by a few dozen pixels on the
     // light's edges, so several short runs are pooled to keep the check
     // itself from being noisy.
-    let (side, n, runs) = if slow() { (64, 64, 8) } else { (48, 32, 4) };
+    let slow =
+        slow_tests("the 64-pixel, 8-run variant of reference::noise_image_predicts_the_real_error");
+    let (side, n, runs) = if slow { (64, 64, 8) } else { (48, 32, 4) };
     let (scene, v) = cornell(side);
     let long = trace(&scene, &v, &settings(16 * n, 1000));
     let long_values: Vec<f64> = long
@@ -404,9 +404,8 @@ fn noise_image_predicts_the_real_error() {
 #[test]
 fn same_seed_same_image_on_any_thread_count() {
     let (scene, v) = cornell(16);
-    let run = |threads: usize, seed: u64| {
-        crate::util::on_threads(threads, || trace(&scene, &v, &settings(8, seed)))
-    };
+    let run =
+        |threads: usize, seed: u64| on_threads(threads, || trace(&scene, &v, &settings(8, seed)));
     let one = run(1, 7);
     let two = run(2, 7);
     let bits = |f: &Frame| -> Vec<u32> { f.pixels.iter().flatten().map(|v| v.to_bits()).collect() };
@@ -422,7 +421,7 @@ fn same_seed_same_image_on_any_thread_count() {
 #[test]
 fn command_line_writes_image_noise_and_sidecar() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = repo("scenes/cornell-box.gltf");
+    let scene = scene_path("cornell-box.gltf");
     let out = nusselt(
         &[
             "reference",

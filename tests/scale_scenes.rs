@@ -10,9 +10,9 @@ use glam::DVec3;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::visibility::TriangleBvh;
 
-use super::scenes::scenegen::{readme::triangle_count, scale, write_scale};
-use super::scenes::{
-    Loaded, Tri, assert_closed_oriented, load, radiance, scenes_dir, sphere_directions,
+use crate::fixtures::scenegen::{readme::triangle_count, scale, write_scale};
+use crate::fixtures::{
+    Loaded, Tri, assert_closed_oriented, bundled_scene, radiance, read_gltf, sphere_directions,
 };
 
 const FILE: &str = "scale/office-10k.gltf";
@@ -58,8 +58,7 @@ fn triangle_counts_land_within_15_percent_of_their_targets() {
 
 #[test]
 fn bundled_office_loads_without_dropping_anything() {
-    let path = scenes_dir().join(FILE);
-    let scene = load_scene(&path, &LoadOptions::default()).expect("the 10⁴ office loads");
+    let scene = bundled_scene(FILE);
     let generated = triangle_count(&scale::scene(10_000));
     assert_eq!(scene.stats.input_triangles, generated);
     assert_eq!(scene.stats.degenerate_dropped, 0);
@@ -92,7 +91,7 @@ fn bundled_office_loads_without_dropping_anything() {
 
 #[test]
 fn office_shells_are_closed_and_only_ceiling_panels_emit() {
-    let Loaded { doc, tris, .. } = load(FILE);
+    let Loaded { doc, tris, .. } = read_gltf(FILE);
     let shell: Vec<&Tri> = tris.iter().filter(|t| is_shell(&t.node)).collect();
     for t in &shell {
         assert!(
@@ -125,7 +124,7 @@ type Bounds = (String, DVec3, DVec3);
 
 #[test]
 fn office_furniture_stays_in_its_room_without_overlaps() {
-    let Loaded { tris, .. } = load(FILE);
+    let Loaded { tris, .. } = read_gltf(FILE);
     // World bounds of every furniture node, by room.
     let mut bounds: BTreeMap<(usize, usize), Vec<Bounds>> = BTreeMap::new();
     let mut per_node: BTreeMap<&str, (DVec3, DVec3)> = BTreeMap::new();
@@ -177,7 +176,7 @@ fn office_furniture_stays_in_its_room_without_overlaps() {
 
 #[test]
 fn office_rays_from_open_space_meet_front_faces_and_the_camera_sees_a_lit_room() {
-    let scene = load_scene(&scenes_dir().join(FILE), &LoadOptions::default()).unwrap();
+    let scene = bundled_scene(FILE);
     let bvh = TriangleBvh::of_scene(&scene);
     // The node a ray first meets, and whether it meets its front.
     let first = |origin: DVec3, dir: DVec3| {

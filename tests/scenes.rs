@@ -12,132 +12,16 @@
 //!   consistently oriented edge manifolds (every directed edge meets its
 //!   reverse exactly once), which also rules out T-junctions there.
 
-#[path = "../tools/scenegen/mod.rs"]
-pub(super) mod scenegen;
-
 use std::collections::HashMap;
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use glam::{DVec3, Mat4};
+use glam::DVec3;
 
-pub(super) fn scenes_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-/// One world-space triangle of a scene, with the node it came from.
-#[derive(Clone, Debug)]
-pub(super) struct Tri {
-    pub(super) node: String,
-    pub(super) material: usize,
-    pub(super) p: [DVec3; 3],
-    /// The exact f32 world positions, for edge matching.
-    key: [[u32; 3]; 3],
-}
-
-impl Tri {
-    pub(super) fn normal(&self) -> DVec3 {
-        (self.p[1] - self.p[0])
-            .cross(self.p[2] - self.p[0])
-            .normalize()
-    }
-    fn area(&self) -> f64 {
-        0.5 * (self.p[1] - self.p[0])
-            .cross(self.p[2] - self.p[0])
-            .length()
-    }
-    fn centroid(&self) -> DVec3 {
-        (self.p[0] + self.p[1] + self.p[2]) / 3.0
-    }
-}
-
-/// A camera node in world space.
-#[derive(Clone, Copy, Debug)]
-struct View {
-    eye: DVec3,
-    forward: DVec3,
-    up: DVec3,
-    right: DVec3,
-    yfov: f64,
-    aspect: f64,
-}
-
-impl View {
-    /// The ray through image point (u, v), u to the right, v downwards, in [0, 1].
-    fn ray(&self, u: f64, v: f64) -> DVec3 {
-        let h = (self.yfov / 2.0).tan();
-        (self.forward
-            + (2.0 * u - 1.0) * h * self.aspect * self.right
-            + (1.0 - 2.0 * v) * h * self.up)
-            .normalize()
-    }
-}
-
-pub(super) struct Loaded {
-    pub(super) doc: gltf::Document,
-    pub(super) tris: Vec<Tri>,
-    views: Vec<View>,
-}
-
-pub(super) fn load(file: &str) -> Loaded {
-    let path = scenes_dir().join(file);
-    let (doc, buffers, _) = gltf::import(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
-    let mut tris = Vec::new();
-    let mut views = Vec::new();
-    let scene = doc.default_scene().expect("a default scene");
-    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        let name = node.name().expect("every node is named").to_owned();
-        if let Some(mesh) = node.mesh() {
-            assert!(
-                mesh.name().is_some(),
-                "{file}: mesh of node {name} has no name"
-            );
-            for prim in mesh.primitives() {
-                assert_eq!(prim.mode(), gltf::mesh::Mode::Triangles);
-                let reader = prim.reader(|b| Some(&buffers[b.index()]));
-                let pos: Vec<[f32; 3]> = reader.read_positions().expect("positions").collect();
-                let idx: Vec<u32> = reader.read_indices().expect("indices").into_u32().collect();
-                assert_eq!(idx.len() % 3, 0);
-                for t in idx.chunks_exact(3) {
-                    let w =
-                        [t[0], t[1], t[2]].map(|i| world.transform_point3(pos[i as usize].into()));
-                    tris.push(Tri {
-                        node: name.clone(),
-                        material: prim.material().index().expect("a material"),
-                        p: w.map(|q| q.as_dvec3()),
-                        key: w.map(|q| q.to_array().map(f32::to_bits)),
-                    });
-                }
-            }
-        }
-        if let Some(camera) = node.camera() {
-            let gltf::camera::Projection::Perspective(p) = camera.projection() else {
-                panic!("{file}: camera {name} is not perspective");
-            };
-            views.push(View {
-                eye: world.transform_point3(glam::Vec3::ZERO).as_dvec3(),
-                forward: world
-                    .transform_vector3(glam::Vec3::NEG_Z)
-                    .as_dvec3()
-                    .normalize(),
-                up: world
-                    .transform_vector3(glam::Vec3::Y)
-                    .as_dvec3()
-                    .normalize(),
-                right: world
-                    .transform_vector3(glam::Vec3::X)
-                    .as_dvec3()
-                    .normalize(),
-                yfov: f64::from(p.yfov()),
-                aspect: f64::from(p.aspect_ratio().expect("an aspect ratio")),
-            });
-        }
-        stack.extend(node.children().map(|c| (c, world)));
-    }
-    Loaded { doc, tris, views }
-}
+use crate::fixtures::{
+    Loaded, Tri, assert_closed_oriented, radiance, read_gltf, scene_path, scenegen,
+    sphere_directions,
+};
 
 /// Möller–Trumbore; the distance along `dir` (unit) to the triangle, if hit.
 fn ray_triangle(origin: DVec3, dir: DVec3, t: &Tri) -> Option<f64> {
@@ -188,19 +72,6 @@ fn first_hit(tris: &[Tri], origin: DVec3, dir: DVec3) -> Option<(usize, bool)> {
     }
 }
 
-/// `n` directions spread evenly over the sphere (Fibonacci lattice).
-pub(super) fn sphere_directions(n: usize) -> Vec<DVec3> {
-    let golden = PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-            let r = (1.0 - y * y).sqrt();
-            let a = golden * i as f64;
-            DVec3::new(r * a.cos(), y, r * a.sin())
-        })
-        .collect()
-}
-
 /// Shoots rays in all directions from `origin`; every ray that hits must hit
 /// a front face first, and when `closed` every ray must hit. Returns the
 /// number of hits per node.
@@ -226,25 +97,6 @@ fn check_rays_from(
     hits
 }
 
-/// Every directed edge must meet its reverse exactly once.
-pub(super) fn assert_closed_oriented(file: &str, tris: &[&Tri]) {
-    let mut edges: HashMap<([u32; 3], [u32; 3]), usize> = HashMap::new();
-    for t in tris {
-        for k in 0..3 {
-            *edges.entry((t.key[k], t.key[(k + 1) % 3])).or_default() += 1;
-        }
-    }
-    for (&(a, b), &n) in &edges {
-        let back = edges.get(&(b, a)).copied().unwrap_or(0);
-        assert!(
-            n == 1 && back == 1,
-            "{file}: edge {:?} → {:?} used {n} times, its reverse {back} times",
-            a.map(f32::from_bits),
-            b.map(f32::from_bits)
-        );
-    }
-}
-
 fn node_tris<'a>(tris: &'a [Tri], name: &str) -> Vec<&'a Tri> {
     let v: Vec<&Tri> = tris.iter().filter(|t| t.node == name).collect();
     assert!(!v.is_empty(), "no triangles in node {name}");
@@ -259,13 +111,6 @@ fn assert_facing(file: &str, tris: &[Tri], name: &str, expected: DVec3) {
             "{file}: node {name} faces {n}, expected {expected}"
         );
     }
-}
-
-/// Emitted radiance of material `m` as the contract defines it.
-pub(super) fn radiance(doc: &gltf::Document, m: usize) -> DVec3 {
-    let mat = doc.materials().nth(m).unwrap();
-    let s = mat.emissive_strength().unwrap_or(1.0);
-    DVec3::from(mat.emissive_factor().map(|c| f64::from(c * s)))
 }
 
 const FILES: [&str; 6] = [
@@ -289,7 +134,7 @@ fn bundled_scenes_are_up_to_date() {
         assert!(again == *bytes, "{name}: generation is not deterministic");
     }
     for (name, bytes) in &first {
-        let path = scenes_dir().join(name);
+        let path = scene_path(name);
         let on_disk = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert!(
             on_disk == *bytes,
@@ -306,7 +151,7 @@ fn bundled_scenes_are_up_to_date() {
 #[test]
 fn every_scene_is_well_formed() {
     for file in FILES {
-        let Loaded { doc, tris, views } = load(file);
+        let Loaded { doc, tris, views } = read_gltf(file);
         assert_eq!(views.len(), 1, "{file}: one camera node");
         for node in doc.nodes() {
             assert!(
@@ -370,7 +215,7 @@ fn every_scene_is_well_formed() {
 #[test]
 fn cornell_box_matches_the_published_data() {
     let file = "cornell-box.gltf";
-    let Loaded { doc, tris, views } = load(file);
+    let Loaded { doc, tris, views } = read_gltf(file);
     assert_eq!(tris.len(), 38);
     let per_node = |n: &str| tris.iter().filter(|t| t.node == n).count();
     for (name, count) in [
@@ -451,7 +296,7 @@ fn cornell_box_matches_the_published_data() {
 #[test]
 fn goral_box_is_a_closed_unit_cube() {
     let file = "goral-box.gltf";
-    let Loaded { doc, tris, views } = load(file);
+    let Loaded { doc, tris, views } = read_gltf(file);
     assert_eq!(tris.len(), 12);
     let centre = DVec3::splat(0.5);
     for name in [
@@ -505,7 +350,7 @@ fn goral_box_is_a_closed_unit_cube() {
 #[test]
 fn two_squares_face_each_other() {
     let file = "two-squares.gltf";
-    let Loaded { doc, tris, views } = load(file);
+    let Loaded { doc, tris, views } = read_gltf(file);
     assert_eq!(tris.len(), 4);
     assert_facing(file, &tris, "emitter", DVec3::Y);
     assert_facing(file, &tris, "receiver", DVec3::NEG_Y);
@@ -539,7 +384,7 @@ fn two_squares_face_each_other() {
 #[test]
 fn penumbra_squares_are_stacked_as_documented() {
     let file = "penumbra.gltf";
-    let Loaded { doc, tris, .. } = load(file);
+    let Loaded { doc, tris, .. } = read_gltf(file);
     assert_eq!(tris.len(), 6);
     assert_facing(file, &tris, "floor", DVec3::Y);
     assert_facing(file, &tris, "occluder", DVec3::Y);
@@ -577,7 +422,7 @@ fn penumbra_squares_are_stacked_as_documented() {
 #[test]
 fn interior_is_closed_furnished_and_lit_indirectly() {
     let file = "three-rooms.gltf";
-    let Loaded { doc, tris, views } = load(file);
+    let Loaded { doc, tris, views } = read_gltf(file);
     assert!(
         (3000..=8000).contains(&tris.len()),
         "{} triangles",

@@ -13,13 +13,11 @@
 //! `many-emitters`) run only with `NUSSELT_SLOW_TESTS=1`; their known
 //! energy excess is stated and bounded there.
 
-use std::path::Path;
-
 use nusselt::classic::matrix::{FormFactorMatrix, Kernel, MatrixSettings};
 use nusselt::classic::solve::{ClassicMethod, Convergence, System};
 use nusselt::classic::uniform::UniformMesh;
+use nusselt::formfactor::closed_form::c14;
 use nusselt::hierarchical::{Accuracy, HierarchicalSettings, solve_hierarchical};
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::pipeline::{Method, SolveRun, SolveSettings, solve};
 use nusselt::render::RenderSettings;
 use nusselt::render::view::ViewOverrides;
@@ -28,7 +26,7 @@ use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use crate::closed_forms::c14;
+use crate::fixtures::{slow_tests, stress_scene};
 
 /// Largest relative excess of absorbed over emitted power accepted in the
 /// fast subset (per channel).
@@ -55,17 +53,6 @@ const CLASSIC: [ClassicMethod; 4] = [
     ClassicMethod::GaussSeidel,
     ClassicMethod::Shooting,
 ];
-
-fn slow_tests() -> bool {
-    std::env::var_os("NUSSELT_SLOW_TESTS").is_some_and(|v| v == "1")
-}
-
-pub fn stress_scene(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/stress")
-        .join(format!("{name}.gltf"));
-    load_scene(&path, &LoadOptions::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
 
 /// Settings of a small, quick run: a 48 × 32 render at 1 sample per pixel.
 fn quick(method: Method) -> SolveSettings {
@@ -411,8 +398,7 @@ fn shared_edge_form_factor_matches_its_closed_form() {
 /// refinement stopped by its round limit).
 #[test]
 fn slow_scenes_keep_the_invariants() {
-    if !slow_tests() {
-        eprintln!("skipped: set NUSSELT_SLOW_TESTS=1 to run");
+    if !slow_tests("stress::slow_scenes_keep_the_invariants") {
         return;
     }
     for (name, energy_tol) in [("furnace-099", 0.3), ("many-emitters", 0.06)] {

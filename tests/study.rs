@@ -1,10 +1,8 @@
 //! `nusselt study` on a tiny scene: the CSV has the expected rows, the
 //! charts are valid SVG and PNG, the reference is cached and reused.
 
+use crate::fixtures::{assert_user_error, nusselt, scene_arg};
 use std::fs;
-use std::path::Path;
-
-use crate::util::nusselt;
 
 #[test]
 fn tiny_study_writes_rows_charts_and_contact_sheet() {
@@ -16,8 +14,7 @@ fn tiny_study_writes_rows_charts_and_contact_sheet() {
           {"label": "hierarchical", "method": "hierarchical", "accuracy": ["preview"]}
         ]}"#;
     fs::write(dir.path().join("study.json"), config).unwrap();
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/goral-box.gltf");
-    let scene = scene.to_string_lossy().into_owned();
+    let scene = scene_arg("goral-box.gltf");
     let args = ["study", &scene, "-o", "s", "--config", "study.json", "-q"];
     let out = nusselt(&args, dir.path());
     assert!(
@@ -63,7 +60,7 @@ fn tiny_study_writes_rows_charts_and_contact_sheet() {
         &["study", &scene, "-o", "t", "--config", "bad.json", "-q"],
         dir.path(),
     );
-    crate::util::assert_user_error(&out, "unknown method 'magic'");
+    assert_user_error(&out, "unknown method 'magic'");
 }
 
 /// The radiosity solutions and the independent path tracer agree on the
@@ -78,8 +75,7 @@ fn tiny_study_writes_rows_charts_and_contact_sheet() {
 #[test]
 fn cornell_radiosity_agrees_with_the_path_tracer() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.gltf");
-    let scene = scene.to_string_lossy().into_owned();
+    let scene = scene_arg("cornell-box.gltf");
     let size = ["--width", "32", "--height", "32"];
     let mut reference = vec!["reference", &scene, "-q", "-o", "ref.exr", "--spp", "256"];
     reference.extend(size);

@@ -1,13 +1,11 @@
 //! Patch triangulation: crack-free meshes of whole scenes with arbitrary
 //! points and constraint segments, checked by `validate_patch_mesh`.
 
-use std::path::Path;
 use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::DVec3;
 use nusselt::Error;
-use nusselt::load::{LoadOptions, load_scene};
 use nusselt::meshing::triangulate::{
     PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches, validate_patch_mesh,
 };
@@ -16,16 +14,12 @@ use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
-fn load(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
-    load_scene(&path, &LoadOptions::default()).expect("bundled scene loads")
-}
+use crate::fixtures::bundled_scene;
 
+/// The Cornell box, loaded once for the module.
 fn cornell() -> &'static Scene {
     static SCENE: OnceLock<Scene> = OnceLock::new();
-    SCENE.get_or_init(|| load("cornell-box.gltf"))
+    SCENE.get_or_init(crate::fixtures::cornell)
 }
 
 /// The point at patch parameters (u, v), extended linearly beyond [0, 1].
@@ -135,7 +129,7 @@ fn triangulation_is_deterministic() {
 
 #[test]
 fn three_rooms_boundaries_have_twins() {
-    let scene = load("three-rooms.gltf");
+    let scene = bundled_scene("three-rooms.gltf");
     let inputs = empty_inputs(&scene);
     let start = Instant::now();
     let tris = triangulate_and_validate(&scene, &inputs, &TriangulateOptions::default());

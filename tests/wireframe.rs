@@ -10,6 +10,8 @@ use nusselt::render::wireframe::wireframe_mask;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
+use crate::fixtures::on_threads;
+
 /// Appends the rectangle [x0, x1] × [y0, y1] at height z, facing +z, as two
 /// triangles whose shared diagonal runs from (x0, y0) to (x1, y1).
 fn add_quad(mesh: &mut OutputMesh, (x0, x1): (f32, f32), (y0, y1): (f32, f32), z: f32) {
@@ -204,7 +206,7 @@ fn same_mask_for_one_and_two_threads() {
     };
     let view = View::resolve(None, (DVec3::splat(-2.0), DVec3::splat(2.0)), &o).unwrap();
     let masks: Vec<Vec<f32>> = [1, 2]
-        .map(|threads| crate::util::on_threads(threads, || wireframe_mask(&mesh, &view)))
+        .map(|threads| on_threads(threads, || wireframe_mask(&mesh, &view)))
         .into();
     assert_eq!(masks[0], masks[1]);
     let lit = masks[0].iter().filter(|c| **c > 0.5).count();
