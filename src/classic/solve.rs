@@ -146,8 +146,8 @@ pub fn solve(
     assert!(system.reflectance.len() == n && system.emission.len() == n && system.area.len() == n);
     Ok(match method {
         ClassicMethod::Direct => direct(system, memory_budget, observe)?,
-        ClassicMethod::Jacobi => gather(system, convergence, false, observe),
-        ClassicMethod::GaussSeidel => gather(system, convergence, true, observe),
+        ClassicMethod::Jacobi => gather(system, convergence, Sweep::Jacobi, observe),
+        ClassicMethod::GaussSeidel => gather(system, convergence, Sweep::GaussSeidel, observe),
         ClassicMethod::Shooting => shoot(system, convergence, observe),
     })
 }
@@ -209,12 +209,20 @@ fn direct(
     })
 }
 
-/// Jacobi (`in_place` false) or Gauss-Seidel (`in_place` true) sweeps,
-/// starting from B = E.
+/// How a gathering sweep uses what it has just computed.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Sweep {
+    /// Jacobi: every element from the previous sweep's radiosities.
+    Jacobi,
+    /// Gauss-Seidel: each element's new value used at once.
+    GaussSeidel,
+}
+
+/// Jacobi or Gauss-Seidel sweeps, starting from B = E.
 fn gather(
     system: &System,
     convergence: &Convergence,
-    in_place: bool,
+    sweep: Sweep,
     observe: &mut dyn FnMut(usize, &[DVec3]),
 ) -> Solution {
     let n = system.len();
@@ -227,7 +235,7 @@ fn gather(
         if n == 0 {
             break;
         }
-        let change = if in_place {
+        let change = if sweep == Sweep::GaussSeidel {
             let mut change: f64 = 0.0;
             for i in 0..n {
                 let next = e[i] + rho[i] * row_dot(system.matrix.row(i), &b);

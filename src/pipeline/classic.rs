@@ -14,12 +14,13 @@ use super::{
     DEFAULT_ELEMENT_FRACTION, SolveRun, SolveSettings, convergence_report, finish, new_report, secs,
 };
 use crate::classic::matrix::FormFactorMatrix;
-use crate::classic::solve::{ClassicMethod, System};
+use crate::classic::solve::{ClassicMethod, Solution, System};
 use crate::classic::uniform::UniformMesh;
 use crate::error::Result;
+use crate::render::frame::Frame;
 use crate::render::render;
 use crate::render::view::View;
-use crate::report::{Counts, Power};
+use crate::report::{Counts, Power, Report};
 use crate::scene::Scene;
 use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
@@ -50,7 +51,6 @@ pub(super) fn solve(
     let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;
     report.times.form_factors = secs(t);
 
-    // The solve, rendering the requested snapshots as it goes.
     let t = Instant::now();
     let (reflectance, emission, area) = mesh.element_values(scene);
     let system = System {
@@ -59,55 +59,12 @@ pub(super) fn solve(
         emission: &emission,
         area: &area,
     };
-    let mut snapshots = Vec::new();
-    let mut snapshot_time = 0.0;
-    let mut observe = |iteration: usize, b: &[DVec3]| {
-        if settings.snapshots.contains(&iteration) {
-            let t = Instant::now();
-            let out = mesh.output_mesh(scene, b);
-            snapshots.push((
-                iteration,
-                render(&out, &view, &settings.render, &Progress::hidden()),
-            ));
-            snapshot_time += secs(t);
-        }
-    };
-    let solution = crate::classic::solve::solve(
-        &system,
-        method,
-        &settings.convergence,
-        settings.matrix.memory_budget,
-        &mut observe,
-    )?;
+    let (solution, mut snapshots, snapshot_time) =
+        solve_with_snapshots(scene, settings, method, &mesh, &system, &view)?;
     report.times.solve = secs(t) - snapshot_time;
     report.times.render += snapshot_time;
+    report_solution(&mut report, settings, method, &system, &solution);
     drop(matrix);
-
-    let area = |i: usize| mesh.elements[i].area;
-    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
-        (0..mesh.elements.len()).map(f).sum::<DVec3>().to_array()
-    };
-    report.power = Power {
-        emitted: sum(&|i| emission[i] * area(i)),
-        absorbed: sum(&|i| (DVec3::ONE - reflectance[i]) * solution.irradiance[i] * area(i)),
-        radiated: sum(&|i| solution.radiosity[i] * area(i)),
-    };
-    report.convergence = convergence_report(
-        solution.converged,
-        settings.convergence.tolerance,
-        solution
-            .history
-            .iter()
-            .map(|h| (h.iteration, h.residual, h.seconds)),
-    );
-    if !solution.converged {
-        report.warnings.push(format!(
-            "{} did not reach the tolerance {} within {} iterations",
-            method.name(),
-            settings.convergence.tolerance,
-            settings.convergence.max_iterations
-        ));
-    }
 
     let t = Instant::now();
     let out = mesh.output_mesh(scene, &solution.radiosity);
@@ -152,4 +109,76 @@ pub(super) fn solve(
         "height": view.height,
     });
     Ok(finish(report, view, out, frame, snapshots, start, settings))
+}
+
+/// Renders after the requested iterations, with their iteration number.
+type Snapshots = Vec<(usize, Frame)>;
+
+/// Runs the classic solver, rendering the requested snapshots as it goes;
+/// returns the solution, the snapshots and the seconds they took.
+fn solve_with_snapshots(
+    scene: &Scene,
+    settings: &SolveSettings,
+    method: ClassicMethod,
+    mesh: &UniformMesh,
+    system: &System,
+    view: &View,
+) -> Result<(Solution, Snapshots, f64)> {
+    let mut snapshots = Vec::new();
+    let mut snapshot_time = 0.0;
+    let mut observe = |iteration: usize, b: &[DVec3]| {
+        if settings.snapshots.contains(&iteration) {
+            let t = Instant::now();
+            let out = mesh.output_mesh(scene, b);
+            snapshots.push((
+                iteration,
+                render(&out, view, &settings.render, &Progress::hidden()),
+            ));
+            snapshot_time += secs(t);
+        }
+    };
+    let solution = crate::classic::solve::solve(
+        system,
+        method,
+        &settings.convergence,
+        settings.matrix.memory_budget,
+        &mut observe,
+    )?;
+    Ok((solution, snapshots, snapshot_time))
+}
+
+/// The solution's power balance and convergence, into the report, with a
+/// warning when it did not converge.
+fn report_solution(
+    report: &mut Report,
+    settings: &SolveSettings,
+    method: ClassicMethod,
+    system: &System,
+    solution: &Solution,
+) {
+    let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
+        (0..system.area.len()).map(f).sum::<DVec3>().to_array()
+    };
+    let (emission, reflectance, area) = (system.emission, system.reflectance, system.area);
+    report.power = Power {
+        emitted: sum(&|i| emission[i] * area[i]),
+        absorbed: sum(&|i| (DVec3::ONE - reflectance[i]) * solution.irradiance[i] * area[i]),
+        radiated: sum(&|i| solution.radiosity[i] * area[i]),
+    };
+    report.convergence = convergence_report(
+        solution.converged,
+        settings.convergence.tolerance,
+        solution
+            .history
+            .iter()
+            .map(|h| (h.iteration, h.residual, h.seconds)),
+    );
+    if !solution.converged {
+        report.warnings.push(format!(
+            "{} did not reach the tolerance {} within {} iterations",
+            method.name(),
+            settings.convergence.tolerance,
+            settings.convergence.max_iterations
+        ));
+    }
 }
