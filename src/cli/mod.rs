@@ -13,6 +13,7 @@ mod args;
 mod chart;
 mod compare;
 mod formfactors;
+mod probe;
 mod reference;
 mod render;
 mod solve;
@@ -49,6 +50,9 @@ enum Command {
     /// Path-trace an independent reference image of the same view, with a
     /// per-pixel noise image and a JSON sidecar.
     Reference(reference::ReferenceArgs),
+    /// Path-trace the radiosity at surface points, with standard errors: a
+    /// table that `compare SOLUTION.exr TABLE.csv` scores solutions against.
+    Probe(probe::ProbeArgs),
     /// Sweep methods and settings against a path-traced reference: results.csv, charts, contact sheet.
     Study(study::StudyArgs),
 }
@@ -80,6 +84,7 @@ pub fn main() -> ExitCode {
         Command::Compare(args) => compare::run(args),
         Command::Chart(args) => chart::run(args),
         Command::Reference(args) => reference::run(args),
+        Command::Probe(args) => probe::run(args),
         Command::Study(args) => study::run(args),
     });
     match result {

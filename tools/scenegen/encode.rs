@@ -263,6 +263,7 @@ pub fn encode(scene: &SceneDef) -> Result<(json::Root, Vec<u8>)> {
             camera,
             mesh: node.mesh.map(|m| json::Index::new(m as u32)),
             translation: node.translation.map(quantize_vec),
+            scale: node.scale.map(quantize_vec),
             rotation: node.rotation.map(|q| {
                 // Rounded to 1e-9 (far below f32 precision near 1) so that
                 // an exact 180° turn is written as (0, 1, 0, 0).

@@ -12,6 +12,7 @@
 pub mod cornell;
 pub mod encode;
 pub mod goral;
+pub mod hard;
 pub mod interior;
 pub mod lattice;
 pub mod model;
@@ -42,6 +43,9 @@ pub fn scenes() -> Vec<SceneDef> {
 /// Folder of the stress scenes, relative to the bundled scenes' folder.
 pub const STRESS_DIR: &str = "stress";
 
+/// Folder of the hard interiors, relative to the bundled scenes' folder.
+pub const HARD_DIR: &str = "hard";
+
 /// Folder of the scale-up scenes, relative to the bundled scenes' folder.
 pub const SCALE_DIR: &str = "scale";
 
@@ -70,6 +74,7 @@ fn push_scene(files: &mut Vec<(String, Vec<u8>)>, dir: &str, scene: &SceneDef) -
 pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
     let scenes = scenes();
     let stress = stress::scenes();
+    let hard = hard::scenes();
     let office = scale::scene(BUNDLED_SCALE);
     let mut files = Vec::new();
     for scene in &scenes {
@@ -78,10 +83,13 @@ pub fn render_all() -> Result<Vec<(String, Vec<u8>)>> {
     for s in &stress {
         push_scene(&mut files, &format!("{STRESS_DIR}/"), &s.scene)?;
     }
+    for h in &hard {
+        push_scene(&mut files, &format!("{HARD_DIR}/"), &h.scene)?;
+    }
     push_scene(&mut files, &format!("{SCALE_DIR}/"), &office)?;
     files.push((
         "README.md".to_owned(),
-        readme::readme(&scenes, &stress, &office)?.into_bytes(),
+        readme::readme(&scenes, &stress, &hard, &office)?.into_bytes(),
     ));
     Ok(files)
 }

@@ -71,6 +71,8 @@ pub struct Node {
     pub camera: Option<Camera>,
     pub translation: Option<DVec3>,
     pub rotation: Option<DQuat>,
+    /// Scale along the node's local axes (applied first, as glTF does).
+    pub scale: Option<DVec3>,
     pub children: Vec<usize>,
 }
 
@@ -177,7 +179,8 @@ pub fn world_transforms(scene: &SceneDef) -> Vec<Option<DAffine3>> {
         .collect();
     while let Some((n, parent)) = stack.pop() {
         let node = &scene.nodes[n];
-        let local = DAffine3::from_rotation_translation(
+        let local = DAffine3::from_scale_rotation_translation(
+            node.scale.unwrap_or(DVec3::ONE),
             node.rotation.unwrap_or_default(),
             node.translation.unwrap_or_default(),
         );

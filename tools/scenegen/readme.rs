@@ -12,6 +12,7 @@ use super::encode::index_mesh;
 pub use super::model::triangle_count;
 use super::model::{BufferStorage, SceneDef, world_transforms};
 use super::scale::Plan;
+use super::hard::HardScene;
 use super::stress::StressScene;
 
 fn rgb(c: [f64; 3]) -> String {
@@ -165,7 +166,12 @@ Emitted power Σ E·A = {} W per channel.\n",
 
 /// The whole README: the bundled scenes, the stress scenes, then the
 /// scale-up family with its bundled member `office`.
-pub fn readme(scenes: &[SceneDef], stress: &[StressScene], office: &SceneDef) -> Result<String> {
+pub fn readme(
+    scenes: &[SceneDef],
+    stress: &[StressScene],
+    hard: &[HardScene],
+    office: &SceneDef,
+) -> Result<String> {
     let mut out = String::new();
     writeln!(out, "# Bundled scenes\n")?;
     writeln!(
@@ -203,13 +209,15 @@ one perspective camera node, which looks down its local −z.\n"
     }
     writeln!(
         out,
-        "The stress scenes of `stress/` are listed [further down](#stress-scenes), and the \
-scale-up scenes of `scale/` [at the end](#scale-up-scenes).\n"
+        "The stress scenes of `stress/` are listed [further down](#stress-scenes), the hard \
+interiors of `hard/` [after them](#hard-interiors), and the scale-up scenes of `scale/` \
+[at the end](#scale-up-scenes).\n"
     )?;
     for s in scenes {
         scene_section(&mut out, s, "", &[])?;
     }
     stress_part(&mut out, stress)?;
+    hard_part(&mut out, hard)?;
     scale_part(&mut out, office)?;
     Ok(out)
 }
@@ -305,6 +313,40 @@ the measurements are in the failure-mode table, [stress/FAILURES.md](stress/FAIL
             format!("**Expected to struggle:** {}", s.struggles),
         ];
         scene_section(out, &s.scene, "stress/", &notes)?;
+    }
+    Ok(())
+}
+
+/// The hard interiors: a summary table, then one section each.
+fn hard_part(out: &mut String, hard: &[HardScene]) -> Result<()> {
+    writeln!(out, "# Hard interiors\n")?;
+    writeln!(
+        out,
+        "The scenes in `hard/` are closed interiors where most light arrives indirectly, or \
+where a thin wall, a narrow gap or a corner must stop it: the scenes the solver's accuracy \
+is judged on, against path-traced point references (`nusselt probe`), and the leak and \
+energy tests run on (`tests/hard.rs`). One of them is held out: no setting of the solver \
+was tuned on it, and its errors are reported apart.\n"
+    )?;
+    writeln!(out, "| scene | title | triangles | checks |")?;
+    writeln!(out, "|---|---|---|---|")?;
+    for h in hard {
+        writeln!(
+            out,
+            "| `hard/{}.gltf` | {} | {} | {} |",
+            h.scene.stem,
+            h.scene.title,
+            triangle_count(&h.scene),
+            h.checks
+        )?;
+    }
+    writeln!(out)?;
+    for h in hard {
+        let mut notes = vec![format!("**Checks:** {}.", h.checks)];
+        if h.held_out {
+            notes.push("**Held out** of every tuning loop.".to_owned());
+        }
+        scene_section(out, &h.scene, "hard/", &notes)?;
     }
     Ok(())
 }

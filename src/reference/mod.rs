@@ -46,22 +46,25 @@
 //! `sqrt(Σ (x_i − x̄)² / (N (N − 1)))`, whose square is an unbiased
 //! estimate of the variance of the pixel value.
 
-use std::f64::consts::PI;
+mod probe;
+mod tracer;
+
+pub use probe::{ProbePoint, ProbeSettings, ProbeValue, probe_radiosity, random_points};
+
 use std::time::Instant;
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use rand::Rng;
-use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::render::frame::Frame;
 use crate::render::view::View;
-use crate::sampling::{point_in_polygon, stream};
-use crate::scene::{Patch, Scene};
+use crate::sampling::stream;
+use crate::scene::Scene;
 use crate::util::progress::Progress;
-use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
+use tracer::Tracer;
 
 /// Hard cap on the bounces of any path, whatever `max_bounces` says.
 pub const MAX_BOUNCES_CAP: u32 = 10_000;
@@ -253,230 +256,9 @@ fn sidecar(image: &std::path::Path, suffix: &str) -> std::path::PathBuf {
     image.with_file_name(format!("{stem}.{suffix}"))
 }
 
-/// A surface point reached by a ray, on the radiating side of its patch.
-struct SurfaceHit<'a> {
-    point: DVec3,
-    patch: &'a Patch,
-    patch_index: u32,
-}
-
-/// The scene prepared for path tracing.
-struct Tracer<'a> {
-    scene: &'a Scene,
-    bvh: TriangleBvh,
-    /// Unit normal of each scene triangle's front face.
-    normals: Vec<DVec3>,
-    /// Emitting patches and the cumulative selection probabilities.
-    lights: Vec<u32>,
-    light_cdf: Vec<f64>,
-    /// Probability of picking each patch for light sampling (0 for
-    /// non-emitters).
-    pick: Vec<f64>,
-    /// Offset of continuation rays off their surface.
-    offset: f64,
-    max_bounces: u32,
-}
-
-impl<'a> Tracer<'a> {
-    fn new(scene: &'a Scene, max_bounces: Option<u32>) -> Result<Tracer<'a>> {
-        let bvh = TriangleBvh::of_scene(scene);
-        let normals = scene
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.positions;
-                (b - a).cross(c - a).normalize_or_zero()
-            })
-            .collect();
-        let power = |p: &Patch| p.emission.max(DVec3::ZERO).element_sum() * p.area;
-        let lights: Vec<u32> = (0..scene.patches.len() as u32)
-            .filter(|&i| power(&scene.patches[i as usize]) > 0.0)
-            .collect();
-        let total: f64 = lights
-            .iter()
-            .map(|&i| power(&scene.patches[i as usize]))
-            .sum();
-        if lights.is_empty() || !(total.is_finite() && total > 0.0) {
-            return Err(Error::NoEmitters);
-        }
-        let mut pick = vec![0.0; scene.patches.len()];
-        let mut acc = 0.0;
-        let light_cdf = lights
-            .iter()
-            .map(|&i| {
-                let p = power(&scene.patches[i as usize]) / total;
-                pick[i as usize] = p;
-                acc += p;
-                acc
-            })
-            .collect();
-        Ok(Tracer {
-            scene,
-            bvh,
-            normals,
-            lights,
-            light_cdf,
-            pick,
-            offset: ENDPOINT_GAP * scene.diagonal(),
-            max_bounces: max_bounces.unwrap_or(MAX_BOUNCES_CAP).min(MAX_BOUNCES_CAP),
-        })
-    }
-
-    /// The radiating surface hit first along `o + t d` (`d` unit), or
-    /// `None` when the ray escapes or meets the back of a one-sided surface.
-    fn trace(&self, o: DVec3, d: DVec3) -> Option<SurfaceHit<'a>> {
-        let hit = self.bvh.closest_hit(o, d, f64::from(f32::MAX))?;
-        let triangle = &self.scene.triangles[hit.triangle as usize];
-        let patch_index = if self.normals[hit.triangle as usize].dot(d) < 0.0 {
-            triangle.front_patch
-        } else {
-            triangle.back_patch?
-        };
-        Some(SurfaceHit {
-            point: o + hit.t * d,
-            patch: &self.scene.patches[patch_index as usize],
-            patch_index,
-        })
-    }
-
-    /// One sample of the radiance arriving at `o` from direction `-d`.
-    fn radiance(&self, o: DVec3, d: DVec3, rng: &mut Pcg64Mcg) -> DVec3 {
-        let Some(mut hit) = self.trace(o, d) else {
-            return DVec3::ZERO;
-        };
-        let mut radiance = hit.patch.emission / PI;
-        let mut throughput = DVec3::ONE;
-        let mut bounce = 0;
-        while bounce < self.max_bounces {
-            bounce += 1;
-            let rho = hit.patch.reflectance;
-            if rho.max_element() <= 0.0 {
-                break;
-            }
-            let x = hit.point;
-            let n = hit.patch.normal;
-            radiance += throughput * rho * self.direct_by_light_sampling(x, n, rng);
-
-            // Cosine-weighted continuation: BSDF × cos / pdf = ρ.
-            let wi = cosine_direction(n, rng.random(), rng.random());
-            let cos_x = n.dot(wi);
-            if !(cos_x > 0.0) {
-                break;
-            }
-            throughput *= rho;
-            let Some(next) = self.trace(x + self.offset * n, wi) else {
-                break;
-            };
-            if next.patch.is_emitter() {
-                let to_light = next.point - x;
-                let cos_light = -next.patch.normal.dot(wi);
-                if cos_light > 0.0 {
-                    let p_bsdf = cos_x / PI;
-                    let p_light = self.pick[next.patch_index as usize] / next.patch.area
-                        * to_light.length_squared()
-                        / cos_light;
-                    radiance +=
-                        throughput * next.patch.emission / PI * power_weight(p_bsdf, p_light);
-                }
-            }
-            hit = next;
-            if bounce >= ROULETTE_START {
-                let survive = throughput.max_element().min(MAX_SURVIVAL);
-                if !(rng.random::<f64>() < survive) {
-                    break;
-                }
-                throughput /= survive;
-            }
-        }
-        radiance
-    }
-
-    /// The MIS-weighted light-sampling estimate of the irradiance-like
-    /// integral ∫ L_e cos θ / π dω at `x` (normal `n`): reflected radiance
-    /// is ρ times this.
-    fn direct_by_light_sampling(&self, x: DVec3, n: DVec3, rng: &mut Pcg64Mcg) -> DVec3 {
-        let u: f64 = rng.random();
-        let k = self
-            .light_cdf
-            .partition_point(|&c| c <= u)
-            .min(self.lights.len() - 1);
-        let index = self.lights[k] as usize;
-        let light = &self.scene.patches[index];
-        let y = point_in_polygon(light.vertices(), DVec2::new(rng.random(), rng.random()));
-        let to_light = y - x;
-        let r2 = to_light.length_squared();
-        if !(r2 > 0.0) {
-            return DVec3::ZERO;
-        }
-        let wi = to_light / r2.sqrt();
-        let cos_x = n.dot(wi);
-        let cos_light = -light.normal.dot(wi);
-        if !(cos_x > 0.0 && cos_light > 0.0 && self.bvh.visible(x, y)) {
-            return DVec3::ZERO;
-        }
-        let p_light = self.pick[index] / light.area * r2 / cos_light;
-        let p_bsdf = cos_x / PI;
-        // (ρ/π) L_e cos θ / p_light, with ρ applied by the caller.
-        light.emission / PI * (cos_x / PI) / p_light * power_weight(p_light, p_bsdf)
-    }
-}
-
-/// The power-heuristic weight of the strategy with density `p` against the
-/// one with density `other`: p² / (p² + other²), safe for huge ratios.
-fn power_weight(p: f64, other: f64) -> f64 {
-    let r = other / p;
-    if r.is_finite() {
-        1.0 / (1.0 + r * r)
-    } else {
-        0.0
-    }
-}
-
-/// A cosine-distributed unit direction about unit `n` from two uniform
-/// numbers in [0, 1) (Malley's method: uniform disc, projected up).
-fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
-    let (t, b) = n.any_orthonormal_pair();
-    let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    let z = (1.0 - u1).max(0.0).sqrt();
-    (r * phi.cos() * t + r * phi.sin() * b + z * n).normalize()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn cosine_directions_have_the_cosine_moments() {
-        // E[cos θ] = 2/3 and E[cos² θ] = 1/2 for the cosine density.
-        let n = DVec3::new(1.0, 2.0, -0.5).normalize();
-        let mut rng = stream(5, 0);
-        let k = 200_000;
-        let (mut m1, mut m2) = (0.0, 0.0);
-        for _ in 0..k {
-            let d = cosine_direction(n, rng.random(), rng.random());
-            assert!((d.length() - 1.0).abs() < 1e-12);
-            let c = d.dot(n);
-            assert!(c >= 0.0);
-            m1 += c;
-            m2 += c * c;
-        }
-        assert!(
-            (m1 / k as f64 - 2.0 / 3.0).abs() < 3e-3,
-            "{}",
-            m1 / k as f64
-        );
-        assert!((m2 / k as f64 - 0.5).abs() < 3e-3, "{}", m2 / k as f64);
-    }
-
-    #[test]
-    fn power_weights_sum_to_one_and_survive_extremes() {
-        for (a, b) in [(1.0, 1.0), (0.3, 7.0), (1e-300, 1e300), (5.0, 0.0)] {
-            let s = power_weight(a, b) + power_weight(b, a);
-            assert!((s - 1.0).abs() < 1e-12, "{a} {b}: {s}");
-        }
-        assert_eq!(power_weight(2.0, 0.0), 1.0);
-    }
 
     #[test]
     fn sidecars_sit_beside_the_image() {
