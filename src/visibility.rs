@@ -46,19 +46,42 @@ pub struct TriangleBvh {
     /// Input index of each triangle in `triangles`.
     input_index: Vec<u32>,
     endpoint_gap: f64,
+    /// Coordinates are stored times this power of two (see
+    /// [`SCALED_DIAGONAL`]).
+    scale: f64,
     build_time: Duration,
 }
+
+/// The diagonal the geometry is scaled to (by a power of two, exactly)
+/// before it goes into the BVH. obvhs's compressed BVH skips every node
+/// the ray leaves before parameter 1e-4: with unit directions, a surface
+/// within 1e-4 of a ray's origin is not seen. At this scale that blind
+/// spot is 1e-8 of the diagonal, far below [`ENDPOINT_GAP`], whatever the
+/// scene's size (unscaled, it was 0.1 mm: a ray started that close to a
+/// surface passed through it).
+const SCALED_DIAGONAL: f64 = 1e4;
 
 impl TriangleBvh {
     /// Builds the BVH. `diagonal` is the scene's length scale.
     pub fn new(triangles: &[[Vec3; 3]], diagonal: f64) -> TriangleBvh {
         let start = std::time::Instant::now();
+        // A power of two: scaling f32 coordinates by it is exact.
+        let scale = if diagonal > 0.0 && diagonal.is_finite() {
+            (SCALED_DIAGONAL / diagonal)
+                .log2()
+                .round()
+                .clamp(-60.0, 60.0)
+                .exp2()
+        } else {
+            1.0
+        };
+        let s = scale as f32;
         let tris: Vec<Triangle> = triangles
             .iter()
             .map(|t| Triangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
+                v0: (t[0] * s).into(),
+                v1: (t[1] * s).into(),
+                v2: (t[2] * s).into(),
             })
             .collect();
         let (bvh, ordered, input_index) = if tris.is_empty() {
@@ -79,6 +102,7 @@ impl TriangleBvh {
             triangles: ordered,
             input_index,
             endpoint_gap: ENDPOINT_GAP * diagonal,
+            scale,
             build_time: start.elapsed(),
         }
     }
@@ -120,12 +144,14 @@ impl TriangleBvh {
         if !(len > 2.0 * self.endpoint_gap) {
             return true;
         }
-        let gap = self.endpoint_gap / len;
+        // A unit direction and parameters in scaled units (see
+        // [`SCALED_DIAGONAL`]); `+ 0.0` as in `closest_hit`.
+        let s = self.scale;
         let ray = Ray::new(
-            Vec3A::from(a.as_vec3()),
-            Vec3A::from(d.as_vec3()),
-            gap as f32,
-            (1.0 - gap) as f32,
+            Vec3A::from((a * s).as_vec3()),
+            Vec3A::from((d / len + 0.0).as_vec3()),
+            (self.endpoint_gap * s) as f32,
+            ((len - self.endpoint_gap) * s) as f32,
         );
         self.bvh
             .ray_traverse_miss(ray, |ray, id| self.triangles[id].intersect(ray))
@@ -146,11 +172,22 @@ impl TriangleBvh {
         if self.triangles.is_empty() {
             return None;
         }
+        let len = direction.length();
+        if !(len > 0.0) {
+            return None;
+        }
+        // A unit direction, parameters in scaled units (see
+        // [`SCALED_DIAGONAL`]). `+ 0.0` turns −0 components into +0: obvhs
+        // takes a −0 component for negative when inverting it but not
+        // when ordering the slabs, so an exactly axis-aligned ray with a −0
+        // component (a back patch's normal, a probe's normal negated)
+        // misses everything.
+        let k = self.scale * len;
         let ray = Ray::new(
-            Vec3A::from(origin.as_vec3()),
-            Vec3A::from(direction.as_vec3()),
+            Vec3A::from((origin * self.scale).as_vec3()),
+            Vec3A::from((direction / len + 0.0).as_vec3()),
             0.0,
-            t_max as f32,
+            (t_max * k).min(f64::from(f32::MAX)) as f32,
         );
         let mut hit = RayHit::none();
         if self
@@ -158,7 +195,7 @@ impl TriangleBvh {
             .ray_traverse(ray, &mut hit, |ray, id| self.triangles[id].intersect(ray))
         {
             Some(Hit {
-                t: hit.t as f64,
+                t: hit.t as f64 / k,
                 triangle: self.input_index[hit.primitive_id as usize],
             })
         } else {

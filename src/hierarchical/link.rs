@@ -188,6 +188,10 @@ pub enum Inherited {
     /// The refined link saw its source whole: one probe ray per receiver
     /// quarter first (`sample_visibility`).
     WhollyVisible,
+    /// The refined link saw its source in part: the new link lies in a
+    /// penumbra, where a visibility of exactly 0 or 1 from its own rays is
+    /// a selection, not an estimate ([`Evaluator::fresh_visibility`]).
+    PartlyVisible,
 }
 
 impl Link {
@@ -195,11 +199,30 @@ impl Link {
     pub fn inherited(&self) -> Inherited {
         if self.wholly_visible() {
             Inherited::WhollyVisible
+        } else if self.partly_visible() || self.spread() > 0.0 {
+            Inherited::PartlyVisible
         } else {
             Inherited::Nothing
         }
     }
+
+    /// The link with its visible fraction and spread replaced.
+    pub fn with_visibility(&self, visibility: f64, spread: f64) -> Link {
+        let f = f64::from(self.form_factor);
+        Link::new(
+            self.source,
+            f,
+            f64::from(self.error),
+            visibility,
+            spread,
+            self.rays(),
+        )
+    }
 }
+
+/// Mixed into the seed of [`Evaluator::fresh_visibility`]'s rays, so that
+/// they are independent of the rays that decided the link.
+const FRESH_TAG: u64 = 0x6672_6573_6876_6973;
 
 /// What link evaluation needs of a solve: the scene, the elements, the
 /// occluders and the seed of the visibility rays.
@@ -216,6 +239,29 @@ pub struct Evaluator<'a> {
 }
 
 impl Evaluator<'_> {
+    /// The visible fraction and spread of (receiver `r`, source `s`) from
+    /// `rays` rays independent of those [`evaluate_link`] casts, and the
+    /// rays cast. A link accepted because its own rays saw its source wholly
+    /// hidden (or wholly visible) inside a penumbra keeps this value
+    /// instead: refinement keeps the links whose rays read 0 and refines
+    /// the others, so the deciding reading, kept, loses the light of every
+    /// partly hidden source that happened to read 0 (and gains where they
+    /// read 1).
+    pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (f64, f64, u64) {
+        let (re, se) = (&self.elements[r.index()], &self.elements[s.index()]);
+        let mut rng = pair_stream(self.seed ^ FRESH_TAG, r.0, s.0);
+        let rays = rays.clamp(1, 4 * MAX_QUARTER_RAYS);
+        sample_visibility(
+            self.scene,
+            re,
+            se,
+            self.bvh,
+            rays,
+            Inherited::Nothing,
+            &mut rng,
+        )
+    }
+
     /// [`evaluate_link`] of (receiver `r`, source `s`).
     pub fn evaluate(
         &self,

@@ -184,11 +184,23 @@ impl Solver<'_> {
                             n
                         }
                     };
-                    let (mut link, cast) =
+                    let (mut link, mut cast) =
                         evaluator.evaluate(p.receiver, p.source, p.inherited, plan);
                     let d = decide(t, &link, &ends);
                     if d == Decision::Accept {
                         sharpen(self.scene, t, &mut link, &ends);
+                        // Accepted on all-or-nothing rays in a penumbra: the
+                        // value comes from fresh rays.
+                        let extreme = !link.partly_visible() && link.spread() == 0.0;
+                        if p.inherited == Inherited::PartlyVisible
+                            && extreme
+                            && link.rays() >= t.max_rays()
+                        {
+                            let (v, spread, more) =
+                                evaluator.fresh_visibility(p.receiver, p.source, link.rays());
+                            link = link.with_visibility(v, spread);
+                            cast += more;
+                        }
                     }
                     (link, cast, d)
                 })

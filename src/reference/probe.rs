@@ -9,8 +9,9 @@
 //!
 //! Invariants: a point must lie on a patch (within a small tolerance) and
 //! face the way that patch does, else it is an error naming the point;
-//! sample `s` of point `k` draws from `stream(seed ^ TAG, k << 32 | s)`,
-//! so values are bit-identical for any thread count.
+//! path `s` of point `k` draws from `stream(seed ^ TAG, k << 32 | s)`,
+//! so values are bit-identical for any thread count. The standard error
+//! is honest: it comes from independent replicas of the whole estimate.
 
 use std::f64::consts::PI;
 
@@ -92,38 +93,68 @@ pub fn probe_radiosity(
         .map(|(k, p)| locate(scene, &tracer, k, p))
         .collect::<Result<_>>()?;
     let seed = settings.seed ^ PROBE_TAG;
-    let n = settings.samples;
     let phase = progress.phase("probe", points.len() as u64);
     let values = points
         .par_iter()
         .zip(hits)
         .enumerate()
         .map(|(k, (p, hit))| {
-            let patch = hit.patch_index;
-            let (mut mean, mut m2) = (DVec3::ZERO, DVec3::ZERO);
-            for s in 0..n {
-                let mut rng = stream(seed, (k as u64) << 32 | u64::from(s));
-                let at = SurfaceHit {
-                    point: hit.point,
-                    patch: hit.patch,
-                    patch_index: hit.patch_index,
-                };
-                let b = PI * tracer.leaving(at, &mut rng);
-                let delta = b - mean;
-                mean += delta / f64::from(s + 1);
-                m2 += delta * (b - mean);
-            }
-            let n = f64::from(n);
+            let value = estimate(&tracer, &hit, settings.samples, seed, k as u64);
             phase.inc(1);
             ProbeValue {
                 point: *p,
-                patch,
-                radiosity: mean,
-                standard_error: (m2 / ((n - 1.0) * n)).max(DVec3::ZERO).map(f64::sqrt),
+                patch: hit.patch_index,
+                radiosity: value.0,
+                standard_error: value.1,
             }
         })
         .collect();
     Ok(values)
+}
+
+/// Independent replicas of a point's estimate: its standard error comes
+/// from the spread of their means.
+const REPLICAS: u32 = 16;
+
+/// The radiosity at `hit` (point `k`) from `samples` paths, and its
+/// standard error. The first bounce's directions are stratified: each of
+/// the [`REPLICAS`] replicas jitters its own grid of strata over the unit
+/// square (which way the first bounce goes is most of the variance when
+/// the light arrives through a small opening), so the replicas' means are
+/// independent and identically distributed, and the standard error is
+/// their standard deviation over √replicas.
+fn estimate(tracer: &Tracer, hit: &SurfaceHit, samples: u32, seed: u64, k: u64) -> (DVec3, DVec3) {
+    let per = samples.div_ceil(REPLICAS).max(1);
+    let side = f64::from(per).sqrt().ceil() as u32;
+    let mut means = Vec::with_capacity(REPLICAS as usize);
+    for r in 0..REPLICAS {
+        let mut sum = DVec3::ZERO;
+        for s in 0..per {
+            let mut rng = stream(seed, k << 32 | u64::from(r * per + s));
+            // Stratum s of a side × side grid (the last row partly used).
+            let (i, j) = (s % side, s / side);
+            let rows = per.div_ceil(side);
+            let u = DVec2::new(
+                (f64::from(i) + rng.random::<f64>()) / f64::from(side),
+                (f64::from(j) + rng.random::<f64>()) / f64::from(rows),
+            );
+            let at = SurfaceHit {
+                point: hit.point,
+                patch: hit.patch,
+                patch_index: hit.patch_index,
+            };
+            sum += PI * tracer.leaving_from(at, Some(u), &mut rng);
+        }
+        means.push(sum / f64::from(per));
+    }
+    let n = f64::from(REPLICAS);
+    let mean = means.iter().sum::<DVec3>() / n;
+    let var = means
+        .iter()
+        .map(|m| (*m - mean) * (*m - mean))
+        .sum::<DVec3>()
+        / (n - 1.0);
+    (mean, (var / n).map(f64::sqrt))
 }
 
 /// The radiating surface under point `k`: a ray from just in front of it
@@ -148,7 +179,9 @@ fn locate<'a>(
     let reach = ON_SURFACE * scene.diagonal();
     let from = p.position + reach * n;
     match tracer.trace(from, -n) {
-        Some(hit) if hit.point.distance(p.position) <= reach && hit.patch.normal.dot(n) > 0.5 => {
+        Some(hit)
+            if hit.point.distance(p.position) <= 2.0 * reach && hit.patch.normal.dot(n) > 0.5 =>
+        {
             Ok(hit)
         }
         _ => Err(fail("no surface facing that way lies there")),

@@ -114,7 +114,19 @@ impl<'a> Tracer<'a> {
 
     /// One sample of the radiance leaving `hit` (its emission included)
     /// toward where it was seen from.
-    pub(super) fn leaving(&self, mut hit: SurfaceHit<'a>, rng: &mut Pcg64Mcg) -> DVec3 {
+    pub(super) fn leaving(&self, hit: SurfaceHit<'a>, rng: &mut Pcg64Mcg) -> DVec3 {
+        self.leaving_from(hit, None, rng)
+    }
+
+    /// [`Tracer::leaving`], the first continuation's cosine-distributed
+    /// direction made from the unit-square point `first` when given (a
+    /// stratum of the caller's) instead of from `rng`.
+    pub(super) fn leaving_from(
+        &self,
+        mut hit: SurfaceHit<'a>,
+        first: Option<DVec2>,
+        rng: &mut Pcg64Mcg,
+    ) -> DVec3 {
         let mut radiance = hit.patch.emission / PI;
         let mut throughput = DVec3::ONE;
         let mut bounce = 0;
@@ -129,7 +141,10 @@ impl<'a> Tracer<'a> {
             radiance += throughput * rho * self.direct_by_light_sampling(x, n, rng);
 
             // Cosine-weighted continuation: BSDF × cos / pdf = ρ.
-            let wi = cosine_direction(n, rng.random(), rng.random());
+            let wi = match first.filter(|_| bounce == 1) {
+                Some(u) => cosine_direction(n, u.x, u.y),
+                None => cosine_direction(n, rng.random(), rng.random()),
+            };
             let cos_x = n.dot(wi);
             if !(cos_x > 0.0) {
                 break;

@@ -127,7 +127,10 @@ fn part(face: &BoundaryFace) -> &'static str {
 /// the tube.
 fn torus(major: f64, minor: f64, segments: usize, sides: usize) -> Vec<Tri> {
     let at = |i: usize, j: usize| {
-        let (u, w) = (TAU * i as f64 / segments as f64, TAU * j as f64 / sides as f64);
+        let (u, w) = (
+            TAU * i as f64 / segments as f64,
+            TAU * j as f64 / sides as f64,
+        );
         let ring = v(u.cos(), u.sin(), 0.0);
         (major + minor * w.cos()) * ring + v(0.0, 0.0, minor * w.sin())
     };
@@ -157,7 +160,11 @@ fn slat(length: f64, width: f64, thickness: f64, tilt: f64) -> Vec<Tri> {
 /// the skylight, so that all light reaches the hall after bouncing off the
 /// louvres and the well's walls.
 pub fn gallery() -> SceneDef {
-    let mut s = SceneDef::new("gallery", "Gallery lit through louvres", BufferStorage::External);
+    let mut s = SceneDef::new(
+        "gallery",
+        "Gallery lit through louvres",
+        BufferStorage::External,
+    );
     s.about = "The museum of the lecture, lit through baffles: a hall 18 m × 10 m × 5 m with \
 a light well 12 m × 3 m in its ceiling (x ∈ [3, 15], z ∈ [3.5, 6.5], 2.5 m deep), closed at \
 the top by the skylight, the only light. In the well hang 16 louvres, 12 m long and 0.54 m \
@@ -184,7 +191,11 @@ along every edge. The camera looks down the hall from a corner."
     let sky = emitter(&mut s, "skylight", [0.5, 0.5, 0.5], [30.0, 30.0, 28.0]);
 
     let (top, well_top) = (5.0, 7.5);
-    let mut lattice = Lattice::new(lines(0.0, 18.0, 0.5), lines(0.0, well_top, 0.5), lines(0.0, 10.0, 0.5));
+    let mut lattice = Lattice::new(
+        lines(0.0, 18.0, 0.5),
+        lines(0.0, well_top, 0.5),
+        lines(0.0, 10.0, 0.5),
+    );
     lattice.open(v(0.0, 0.0, 0.0), v(18.0, top, 10.0), 0);
     lattice.open(v(3.0, top, 3.5), v(15.0, well_top, 6.5), 1);
     let mut shell = Shell::new();
@@ -226,11 +237,22 @@ along every edge. The camera looks down the hall from a corner."
     let pedestal = s.add_mesh(
         "pedestal",
         stone,
-        cuboid(v(-0.5 * pw, 0.0, -0.5 * pw), v(0.5 * pw, ph, 0.5 * pw), &[Side::NegY]),
+        cuboid(
+            v(-0.5 * pw, 0.0, -0.5 * pw),
+            v(0.5 * pw, ph, 0.5 * pw),
+            &[Side::NegY],
+        ),
     );
     let (major, minor) = (0.3, 0.1);
     let sculpture = s.add_mesh("sculpture", bronze, torus(major, minor, 48, 24));
-    let spots = [(4.5, 1.8), (9.0, 1.8), (13.5, 1.8), (4.5, 8.2), (9.0, 8.2), (13.5, 8.2)];
+    let spots = [
+        (4.5, 1.8),
+        (9.0, 1.8),
+        (13.5, 1.8),
+        (4.5, 8.2),
+        (9.0, 8.2),
+        (13.5, 8.2),
+    ];
     for (k, &(x, z)) in spots.iter().enumerate() {
         let node = s.add_node(Node {
             name: format!("pedestal_{k}"),
@@ -252,20 +274,35 @@ along every edge. The camera looks down the hall from a corner."
         });
         s.roots.push(node);
     }
-    s.add_camera("camera", v(0.8, 2.2, 0.8), v(12.0, 1.4, 7.0), DVec3::Y, camera());
+    s.add_camera(
+        "camera",
+        v(0.8, 2.2, 0.8),
+        v(12.0, 1.4, 7.0),
+        DVec3::Y,
+        camera(),
+    );
     s
 }
 
 /// Two rooms side by side, parted by a 5 cm wall; only the first is lit.
 pub fn sealed_rooms() -> SceneDef {
-    let mut s = SceneDef::new("sealed-rooms", "A lit room beside a sealed one", BufferStorage::External);
+    let mut s = SceneDef::new(
+        "sealed-rooms",
+        "A lit room beside a sealed one",
+        BufferStorage::External,
+    );
     s.about = "Two closed rooms of 4 m × 2.5 m × 3 m side by side, parted by a wall 5 cm thick \
 (x ∈ [4, 4.05]). The first room has a 1 m × 1 m ceiling light and a box on its floor; the \
 second has no light and no opening: every bit of light found there has leaked through the \
 wall. The shells are lattices of 0.5 m quads."
         .to_owned();
     let paint = material(&mut s, "paint", [0.7, 0.7, 0.7], "white paint");
-    let dark = material(&mut s, "sealed_paint", [0.7, 0.7, 0.7], "the same paint, sealed room");
+    let dark = material(
+        &mut s,
+        "sealed_paint",
+        [0.7, 0.7, 0.7],
+        "the same paint, sealed room",
+    );
     let lamp = emitter(&mut s, "lamp", [0.7, 0.7, 0.7], [10.0, 10.0, 10.0]);
     let mut xs = lines(0.0, 4.0, 0.5);
     xs.extend(lines(4.05, 8.05, 0.5));
@@ -275,7 +312,10 @@ wall. The shells are lattices of 0.5 m quads."
     let mut shell = Shell::new();
     for face in lattice.boundary() {
         let c = 0.5 * (face.cell_min + face.cell_max);
-        let lit = face.region == 0 && face.facing == Side::NegY && (1.5..2.5).contains(&c.x) && (1.0..2.0).contains(&c.z);
+        let lit = face.region == 0
+            && face.facing == Side::NegY
+            && (1.5..2.5).contains(&c.x)
+            && (1.0..2.0).contains(&c.z);
         let (name, m) = match (face.region, lit) {
             (0, true) => ("lamp", lamp),
             (0, false) => ("lit_room", paint),
@@ -284,15 +324,29 @@ wall. The shells are lattices of 0.5 m quads."
         shell.push(name, m, face.triangles);
     }
     shell.add_to(&mut s);
-    s.add_surface("box", paint, cuboid(v(2.6, 0.0, 0.6), v(3.4, 0.8, 1.4), &[Side::NegY]));
-    s.add_camera("camera", v(0.3, 1.6, 0.3), v(3.5, 0.6, 2.6), DVec3::Y, camera());
+    s.add_surface(
+        "box",
+        paint,
+        cuboid(v(2.6, 0.0, 0.6), v(3.4, 0.8, 1.4), &[Side::NegY]),
+    );
+    s.add_camera(
+        "camera",
+        v(0.3, 1.6, 0.3),
+        v(3.5, 0.6, 2.6),
+        DVec3::Y,
+        camera(),
+    );
     s
 }
 
 /// A room with a table and a box on the floor under it, 2 cm below the
 /// table top's underside.
 pub fn table_gap() -> SceneDef {
-    let mut s = SceneDef::new("table-gap", "A box just under a table", BufferStorage::External);
+    let mut s = SceneDef::new(
+        "table-gap",
+        "A box just under a table",
+        BufferStorage::External,
+    );
     s.about = "A closed room of 4 m × 2.5 m × 4 m lit by a 1 m × 1 m ceiling light, with a \
 table (top 1.2 m × 0.8 m, its underside at 0.72 m, on four legs) and, under it, a box whose \
 top is 2 cm below the table's underside: the box's top sees the room only through that gap. \
@@ -302,12 +356,17 @@ The shell is a lattice of 0.5 m quads."
     let wood = material(&mut s, "wood", [0.5, 0.35, 0.2], "table");
     let cardboard = material(&mut s, "cardboard", [0.6, 0.5, 0.35], "box");
     let lamp = emitter(&mut s, "lamp", [0.7, 0.7, 0.7], [10.0, 10.0, 10.0]);
-    let mut lattice = Lattice::new(lines(0.0, 4.0, 0.5), lines(0.0, 2.5, 0.5), lines(0.0, 4.0, 0.5));
+    let mut lattice = Lattice::new(
+        lines(0.0, 4.0, 0.5),
+        lines(0.0, 2.5, 0.5),
+        lines(0.0, 4.0, 0.5),
+    );
     lattice.open(v(0.0, 0.0, 0.0), v(4.0, 2.5, 4.0), 0);
     let mut shell = Shell::new();
     for face in lattice.boundary() {
         let c = 0.5 * (face.cell_min + face.cell_max);
-        let lit = face.facing == Side::NegY && (1.5..2.5).contains(&c.x) && (1.5..2.5).contains(&c.z);
+        let lit =
+            face.facing == Side::NegY && (1.5..2.5).contains(&c.x) && (1.5..2.5).contains(&c.z);
         let (name, m) = if lit { ("lamp", lamp) } else { ("room", paint) };
         shell.push(name, m, face.triangles);
     }
@@ -322,14 +381,32 @@ The shell is a lattice of 0.5 m quads."
         ));
     }
     s.add_surface("table", wood, table);
-    s.add_surface("box", cardboard, cuboid(v(x0 + 0.3, 0.0, z0 + 0.2), v(x0 + 0.9, 0.7, z0 + 0.6), &[Side::NegY]));
-    s.add_camera("camera", v(0.4, 1.5, 3.6), v(2.0, 0.5, 2.0), DVec3::Y, camera());
+    s.add_surface(
+        "box",
+        cardboard,
+        cuboid(
+            v(x0 + 0.3, 0.0, z0 + 0.2),
+            v(x0 + 0.9, 0.7, z0 + 0.6),
+            &[Side::NegY],
+        ),
+    );
+    s.add_camera(
+        "camera",
+        v(0.4, 1.5, 3.6),
+        v(2.0, 0.5, 2.0),
+        DVec3::Y,
+        camera(),
+    );
     s
 }
 
 /// An L-shaped corridor lit at the far end of one leg.
 pub fn corridor() -> SceneDef {
-    let mut s = SceneDef::new("corridor", "A corridor lit around a corner", BufferStorage::External);
+    let mut s = SceneDef::new(
+        "corridor",
+        "A corridor lit around a corner",
+        BufferStorage::External,
+    );
     s.about = "An L-shaped corridor 2 m wide and 2.5 m high: one leg along x (x ∈ [0, 8], \
 z ∈ [0, 2]) with a 1 m × 1 m ceiling light near its closed end, the other along z (x ∈ [6, 8], \
 z ∈ [2, 10]), around the corner from the light, which reaches it almost only by bounces. \
@@ -339,13 +416,18 @@ was tuned on it."
     let paint = material(&mut s, "paint", [0.7, 0.68, 0.62], "cream paint");
     let floor = material(&mut s, "floor", [0.35, 0.3, 0.28], "linoleum");
     let lamp = emitter(&mut s, "lamp", [0.7, 0.7, 0.7], [10.0, 10.0, 10.0]);
-    let mut lattice = Lattice::new(lines(0.0, 8.0, 0.5), lines(0.0, 2.5, 0.5), lines(0.0, 10.0, 0.5));
+    let mut lattice = Lattice::new(
+        lines(0.0, 8.0, 0.5),
+        lines(0.0, 2.5, 0.5),
+        lines(0.0, 10.0, 0.5),
+    );
     lattice.open(v(0.0, 0.0, 0.0), v(8.0, 2.5, 2.0), 0);
     lattice.open(v(6.0, 0.0, 2.0), v(8.0, 2.5, 10.0), 0);
     let mut shell = Shell::new();
     for face in lattice.boundary() {
         let c = 0.5 * (face.cell_min + face.cell_max);
-        let lit = face.facing == Side::NegY && (0.5..1.5).contains(&c.x) && (0.5..1.5).contains(&c.z);
+        let lit =
+            face.facing == Side::NegY && (0.5..1.5).contains(&c.x) && (0.5..1.5).contains(&c.z);
         let (name, m) = match (lit, part(&face)) {
             (true, _) => ("lamp", lamp),
             (false, "floor") => ("floor", floor),
@@ -354,6 +436,12 @@ was tuned on it."
         shell.push(name, m, face.triangles);
     }
     shell.add_to(&mut s);
-    s.add_camera("camera", v(7.0, 1.6, 9.6), v(7.0, 1.0, 0.5), DVec3::Y, camera());
+    s.add_camera(
+        "camera",
+        v(7.0, 1.6, 9.6),
+        v(7.0, 1.0, 0.5),
+        DVec3::Y,
+        camera(),
+    );
     s
 }

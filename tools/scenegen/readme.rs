@@ -9,10 +9,10 @@ use anyhow::Result;
 use glam::DVec3;
 
 use super::encode::index_mesh;
+use super::hard::HardScene;
 pub use super::model::triangle_count;
 use super::model::{BufferStorage, SceneDef, world_transforms};
 use super::scale::Plan;
-use super::hard::HardScene;
 use super::stress::StressScene;
 
 fn rgb(c: [f64; 3]) -> String {
