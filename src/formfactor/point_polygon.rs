@@ -77,7 +77,7 @@ pub fn form_factor_point_polygon(x: DVec3, normal: DVec3, polygon: &[DVec3]) -> 
 /// Sutherland–Hodgman clip of `polygon` to {p : (p − x) · n ≥ 0}. Writes the
 /// clipped polygon into `out` (which must hold at least `polygon.len() + 1`
 /// vertices) and returns its vertex count.
-fn clip_to_half_space(x: DVec3, n: DVec3, polygon: &[DVec3], out: &mut [DVec3]) -> usize {
+pub fn clip_to_half_space(x: DVec3, n: DVec3, polygon: &[DVec3], out: &mut [DVec3]) -> usize {
     let m = polygon.len();
     let mut k = 0;
     let mut push = |p: DVec3, k: &mut usize| {

@@ -13,16 +13,24 @@
 //! it in would dim the link a second time after its visibility already
 //! did. Leaves measure their exposure (rays along the normal from their
 //! quarters that meet a back face first); push-pull carries it up.
+//!
+//! A link to a split source weighs the source's children as its receiver
+//! sees them ([`source_shares`], recomputed once per solve), not by area:
+//! the mean would move light from receivers beside a source's bright part
+//! to those beside its dark part, and the light received would no longer
+//! add up to the light sent.
 
 use std::time::Instant;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::hierarchical::hierarchy::split_corners;
+use crate::formfactor::form_factor_point_polygon;
+use crate::hierarchical::hierarchy::{ElementId, Hierarchy, split_corners};
+use crate::hierarchical::link::{Link, far_apart};
 use crate::hierarchical::solution::Iteration;
 use crate::hierarchical::solver::Solver;
-use crate::scene::polygon_centroid;
+use crate::scene::{Scene, polygon_centroid};
 
 impl Solver<'_> {
     /// Measures the exposure of the leaves created since the last call: of
@@ -68,9 +76,10 @@ impl Solver<'_> {
         start: Instant,
     ) -> bool {
         self.measure_exposure();
+        let shares = source_shares(self.scene, &self.hierarchy, &self.links);
         let mut power = f64::NAN;
         for k in 0..self.settings.max_iterations.max(2) {
-            let mut gathered = self.gather();
+            let mut gathered = self.gather(&shares);
             if let Some(c) = &self.clusters {
                 c.gather(self.scene, &self.hierarchy.elements, &mut gathered);
             }
@@ -98,15 +107,19 @@ impl Solver<'_> {
         false
     }
 
-    /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers.
-    pub(super) fn gather(&self) -> Vec<DVec3> {
+    /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers,
+    /// B_source weighted over a split source's children by `shares`
+    /// ([`source_shares`]).
+    pub(super) fn gather(&self, shares: &[Vec<Shares>]) -> Vec<DVec3> {
         let h = &self.hierarchy;
         self.links
             .par_iter()
+            .zip(shares)
             .with_min_len(64)
-            .map(|ls| {
+            .map(|(ls, sh)| {
                 ls.iter()
-                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
+                    .zip(sh)
+                    .map(|(l, w)| l.coupling() * seen_radiosity(h, l.source, *w))
                     .sum()
             })
             .collect()
@@ -157,5 +170,78 @@ impl Solver<'_> {
         (0..h.root_count())
             .map(|r| h.elements[r].radiosity.element_sum() * h.elements[r].area)
             .sum()
+    }
+}
+
+/// How a link weighs its split source's four children, in 255ths of the
+/// largest; all zero: by exposed area (the source's exposed radiosity).
+pub(crate) type Shares = [u8; 4];
+
+/// For every link (in `links` order), the [`Shares`] of its source's
+/// children as its receiver sees them: each child's point-to-polygon form
+/// factor from the receiver's centroid, for a receiver near its source
+/// (far apart, the children count by area; the gather then reads one
+/// element instead of four). A receiver sees a split
+/// source's children unequally (a floor next to a wall sees the wall's
+/// foot far larger than its top); handing it the children's mean
+/// radiosity instead, receivers near the bright part get too little and
+/// those near the dark part too much, and the sum over receivers no
+/// longer equals the light the source sends out (on a room of 0.7 paint
+/// at the preview preset, 0.25 % too much per bounce, 0.8 % in the
+/// absorbed power).
+pub(crate) fn source_shares(scene: &Scene, h: &Hierarchy, links: &[Vec<Link>]) -> Vec<Vec<Shares>> {
+    links
+        .par_iter()
+        .enumerate()
+        .with_min_len(64)
+        .map(|(r, ls)| {
+            let r = &h.elements[r];
+            let n_r = scene.patches[r.patch as usize].normal;
+            let c = r.centroid();
+            ls.iter()
+                .map(|l| {
+                    let s = h.get(l.source);
+                    let Some(kids) = s.children() else {
+                        return [0; 4];
+                    };
+                    let n_s = scene.patches[s.patch as usize].normal;
+                    if !((c - s.corners[0]).dot(n_s) > 0.0) {
+                        return [0; 4];
+                    }
+                    if far_apart(r, n_r, s, n_s) {
+                        return [0; 4];
+                    }
+                    let w = kids.map(|k| form_factor_point_polygon(c, n_r, h.get(k).vertices()));
+                    let top = w.iter().copied().fold(0.0, f64::max);
+                    if !(top > 0.0) || !top.is_finite() {
+                        return [0; 4];
+                    }
+                    w.map(|w| (255.0 * w / top).round() as u8)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The radiosity `source` hands a receiver whose view of its children is
+/// `shares`: their exposed radiosities weighted by share × exposure, or
+/// the source's exposed radiosity when the shares are all zero or see
+/// only buried children.
+pub(crate) fn seen_radiosity(h: &Hierarchy, source: ElementId, shares: Shares) -> DVec3 {
+    let s = h.get(source);
+    let Some(kids) = s.children().filter(|_| shares != [0; 4]) else {
+        return s.exposed_radiosity;
+    };
+    let (mut b, mut weight) = (DVec3::ZERO, 0.0);
+    for (k, w) in kids.iter().zip(shares) {
+        let k = h.get(*k);
+        let w = f64::from(w) * f64::from(k.exposure);
+        b += w * k.exposed_radiosity;
+        weight += w;
+    }
+    if weight > 0.0 {
+        b / weight
+    } else {
+        s.exposed_radiosity
     }
 }

@@ -11,15 +11,18 @@ use glam::DVec3;
 
 use crate::hierarchical::budget::{Budget, BudgetHit};
 use crate::hierarchical::cluster::{ClusterLink, Node, Step};
+use crate::hierarchical::gather::Shares;
 use crate::hierarchical::hierarchy::ElementId;
 use crate::hierarchical::link::Link;
 use crate::hierarchical::oracle::Decision;
 use crate::hierarchical::solver::{Pair, Solver};
 
 /// Bytes per element in [`memory_estimate`]: the element, its link list,
-/// its irradiance and gathered irradiance, its list of oracle decisions.
+/// its irradiance and gathered irradiance, its list of oracle decisions,
+/// its list of source shares.
 const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::Element>()
     + std::mem::size_of::<Vec<Link>>()
+    + std::mem::size_of::<Vec<Shares>>()
     + 2 * std::mem::size_of::<DVec3>()
     + std::mem::size_of::<Vec<Decision>>()) as u64;
 
@@ -28,7 +31,8 @@ const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::
 /// takes while being settled; or a cluster pair waiting for the oracle
 /// (the pair with spare capacity, the oracle's step), which is less. Not
 /// every link is being settled at once, so this also covers the spare
-/// capacity of the link lists.
+/// capacity of the link lists; and a solve's source shares (4 bytes a
+/// link), which live only while no link is being settled.
 const LINK_BYTES: u64 = (std::mem::size_of::<Link>()
     + std::mem::size_of::<Decision>()
     + std::mem::size_of::<Pair>()

@@ -37,6 +37,7 @@
 
 use glam::DVec3;
 
+use crate::formfactor::point_polygon::clip_to_half_space;
 use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_checked};
 use crate::hierarchical::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
@@ -384,7 +385,7 @@ const FAR_FIELD: f64 = 4.0;
 /// True when elements `r` and `s` are far apart for the form factor: their
 /// centres at least [`FAR_FIELD`] times the sum of their radii apart, and
 /// each wholly in front of the other's plane (no clipping).
-fn far_apart(r: &Element, n_r: DVec3, s: &Element, n_s: DVec3) -> bool {
+pub(crate) fn far_apart(r: &Element, n_r: DVec3, s: &Element, n_s: DVec3) -> bool {
     let radius = |e: &Element, c: DVec3| {
         e.vertices()
             .iter()
@@ -451,19 +452,59 @@ fn sample_visibility(
     });
     let (weight, seen) = (sums.map(|q| q.0), sums.map(|q| q.1));
     let counted: f64 = weight.iter().sum();
-    // No ray counted: the kernel's support was missed by the samples; the
-    // form factor is then tiny and is kept whole.
-    let v = if counted > 0.0 {
-        seen.iter().sum::<f64>() / counted
-    } else {
-        1.0
-    };
+    if !(counted > 0.0) {
+        // Every ray joined points that do not face each other: the pair
+        // faces only in part. Its visibility comes from the parts that do.
+        let (v, cast) = facing_visibility(r, n_r, s, n_s, bvh, total, rng);
+        return (v, 0.0, probed + total as u64 + cast);
+    }
+    let v = seen.iter().sum::<f64>() / counted;
     let (min, max) = (0..4)
         .filter(|&k| weight[k] > 0.0)
         .map(|k| seen[k] / weight[k])
         .fold((1.0f64, 0.0f64), |(lo, hi), q| (lo.min(q), hi.max(q)));
     let spread = (max - min).max(0.0);
     (v, spread, probed + total as u64)
+}
+
+/// The kernel-weighted visible fraction of `s` from `r` by `rays` rays
+/// between the part of each in front of the other's plane (where every ray
+/// counts: both cosines are positive), and the rays cast. 0 when either
+/// part is empty or no ray counts: such a pair exchanges no light that a
+/// ray could confirm, and a visibility of 1 there would carry light
+/// through walls (a receiver whose sample points all lie below a source's
+/// plane, beside a sealed room).
+fn facing_visibility(
+    r: &Element,
+    n_r: DVec3,
+    s: &Element,
+    n_s: DVec3,
+    bvh: &TriangleBvh,
+    rays: usize,
+    rng: &mut impl rand::Rng,
+) -> (f64, u64) {
+    let mut front_r = [DVec3::ZERO; 5];
+    let mut front_s = [DVec3::ZERO; 5];
+    let kr = clip_to_half_space(s.corners[0], n_s, r.vertices(), &mut front_r);
+    let ks = clip_to_half_space(r.corners[0], n_r, s.vertices(), &mut front_s);
+    if kr < 3 || ks < 3 {
+        return (0.0, 0);
+    }
+    let (from, to) = (
+        PolygonSampler::new(&front_r[..kr]),
+        PolygonSampler::new(&front_s[..ks]),
+    );
+    let a = stratified(rays, rng);
+    let mut b = stratified(rays, rng);
+    use rand::seq::SliceRandom;
+    b.shuffle(rng);
+    let pairs = a
+        .iter()
+        .zip(&b)
+        .map(|(a, b)| (from.point(*a), to.point(*b)));
+    let (total, seen) = weighted_visibility(bvh, pairs, n_r, n_s);
+    let v = if total > 0.0 { seen / total } else { 0.0 };
+    (v, rays as u64)
 }
 
 /// Integrand evaluations [`exact_form_factor`] may spend on one link.

@@ -48,7 +48,7 @@ impl Adaptivity {
             .par_iter()
             .with_min_len(16)
             .map(|&(p, x, interpolated)| {
-                let b = points.value(p, x, LinkRays::PartlyVisible);
+                let b = points.value(p, x, LinkRays::Bright);
                 let scale =
                     self.tol * (0.5 * (b + interpolated).max_element() + DARK * self.exitance);
                 (b - interpolated).abs().max_element() / scale

@@ -382,7 +382,7 @@ impl ValueCache {
         let values: Vec<DVec3> = missing
             .par_iter()
             .with_min_len(16)
-            .map(|&(p, x)| points.value(p, x, LinkRays::PartlyVisible))
+            .map(|&(p, x)| points.value(p, x, LinkRays::Bright))
             .collect();
         for (&(p, x), v) in missing.iter().zip(values) {
             self.0.insert(key(p, x), v);

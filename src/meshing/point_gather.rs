@@ -26,13 +26,13 @@ use crate::scene::Scene;
 use crate::util::geometry::outside_polygon;
 use crate::visibility::TriangleBvh;
 
-/// Visibility rays per partly visible link in [`point_radiosity`].
+/// Visibility rays per link not too dim to matter in [`point_radiosity`].
 pub const POINT_RAYS: usize = 8;
 
-/// A partly visible link whose light at a point, ρ F B, is below this
-/// fraction of the brightness threshold `bf_eps` keeps its own visible
-/// fraction in [`point_radiosity`]: the point's rays could move the value
-/// by less than that.
+/// A link whose light at a point, ρ F B, is below this fraction of the
+/// brightness threshold `bf_eps` keeps its own visible fraction in
+/// [`point_radiosity`]: the point's rays could move the value by less
+/// than that.
 pub const DIM_LINK_FRACTION: f64 = 0.2;
 
 /// Visibility rays per emitter patch for the direct light at a point...
@@ -45,13 +45,15 @@ pub const PENUMBRA_RAYS: usize = 256;
 /// the point.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LinkRays {
-    /// Only partly visible links bright enough to matter
-    /// ([`DIM_LINK_FRACTION`]); the others keep their visible fraction.
+    /// Links bright enough to matter ([`DIM_LINK_FRACTION`]), wholly
+    /// visible ones included: a link sees its source whole from the points
+    /// its rays left, not from every point of its receiver (a wall point 1
+    /// cm behind a louvre's edge, under a skylight its leaf sees whole:
+    /// 40 times too bright in the gallery). The others keep their visible
+    /// fraction.
     #[default]
-    PartlyVisible,
-    /// Every link: a link's visibility, whole or none, holds for its
-    /// receiver as sampled, not for every point of it (a point just
-    /// inside an occluder's footprint).
+    Bright,
+    /// Every link, dim ones included.
     Every,
 }
 
@@ -120,8 +122,8 @@ pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u
 /// Radiosity at point `x` of leaf `leaf` by a final gather over the links
 /// of the leaf and its ancestors: each link's source contributes its exact
 /// point-to-polygon form factor from `x` (not the link's mean over its
-/// receiver) times its radiosity, and, for a partly visible link not too
-/// dim to matter ([`DIM_LINK_FRACTION`]), the kernel-weighted visible
+/// receiver) times its radiosity, and, for a link not too dim to matter
+/// ([`DIM_LINK_FRACTION`]), the kernel-weighted visible
 /// fraction of [`POINT_RAYS`] rays from `x` (seeded by `seed`, the leaf
 /// and the source: deterministic). `gather`
 /// says which links cast rays and which emitters are gathered directly.
@@ -201,7 +203,7 @@ pub fn point_radiosity(
                 continue;
             }
             let dim = (patch.reflectance * f * b).max_element() < dim_light;
-            let v = if gather.link_rays == LinkRays::Every || (l.partly_visible() && !dim) {
+            let v = if gather.link_rays == LinkRays::Every || !dim {
                 visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
                     .unwrap_or(l.visibility())
             } else {
