@@ -14,8 +14,8 @@
 //! did. Leaves measure their exposure (rays along the normal from their
 //! quarters that meet a back face first); push-pull carries it up.
 //!
-//! A link to a split source weighs the source's children as its receiver
-//! sees them ([`source_shares`], recomputed once per solve), not by area:
+//! In the final solve, a link to a split source weighs the source's
+//! children as its receiver sees them ([`source_shares`]), not by area:
 //! the mean would move light from receivers beside a source's bright part
 //! to those beside its dark part, and the light received would no longer
 //! add up to the light sent.
@@ -68,15 +68,21 @@ impl Solver<'_> {
 
     /// Gather + push-pull until Σ B·A changes by less than the tolerance
     /// (at least two iterations); appends to `history`. Returns whether the
-    /// tolerance was met.
+    /// tolerance was met. With `shared`, links weigh their split sources'
+    /// children by [`source_shares`] (the final solve: refinement rounds
+    /// in between do without, which is cheaper).
     pub(super) fn iterate(
         &mut self,
         irradiance: &mut [DVec3],
         history: &mut Vec<Iteration>,
         start: Instant,
+        shared: bool,
     ) -> bool {
         self.measure_exposure();
-        let shares = source_shares(self.scene, &self.hierarchy, &self.links);
+        let shares = match shared {
+            true => source_shares(self.scene, &self.hierarchy, &self.links),
+            false => vec![Vec::new(); self.links.len()],
+        };
         let mut power = f64::NAN;
         for k in 0..self.settings.max_iterations.max(2) {
             let mut gathered = self.gather(&shares);
@@ -110,17 +116,26 @@ impl Solver<'_> {
     /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers,
     /// B_source weighted over a split source's children by `shares`
     /// ([`source_shares`]).
-    pub(super) fn gather(&self, shares: &[Vec<Shares>]) -> Vec<DVec3> {
+    pub(super) fn gather(&self, shares: &[Vec<(u32, Shares)>]) -> Vec<DVec3> {
         let h = &self.hierarchy;
         self.links
             .par_iter()
             .zip(shares)
             .with_min_len(64)
             .map(|(ls, sh)| {
-                ls.iter()
-                    .zip(sh)
-                    .map(|(l, w)| l.coupling() * seen_radiosity(h, l.source, *w))
-                    .sum()
+                let mean: DVec3 = ls
+                    .iter()
+                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
+                    .sum();
+                let seen: DVec3 = sh
+                    .iter()
+                    .map(|&(i, w)| {
+                        let l = &ls[i as usize];
+                        let s = h.get(l.source);
+                        l.coupling() * (seen_radiosity(h, l.source, w) - s.exposed_radiosity)
+                    })
+                    .sum();
+                mean + seen
             })
             .collect()
     }
@@ -173,23 +188,30 @@ impl Solver<'_> {
     }
 }
 
+/// Children seen within this ratio of each other per unit area count by
+/// area ([`source_shares`]).
+const EVEN_SHARES: f64 = 1.2;
+
 /// How a link weighs its split source's four children, in 255ths of the
-/// largest; all zero: by exposed area (the source's exposed radiosity).
+/// largest.
 pub(crate) type Shares = [u8; 4];
 
-/// For every link (in `links` order), the [`Shares`] of its source's
-/// children as its receiver sees them: each child's point-to-polygon form
-/// factor from the receiver's centroid, for a receiver near its source
-/// (far apart, the children count by area; the gather then reads one
-/// element instead of four). A receiver sees a split
-/// source's children unequally (a floor next to a wall sees the wall's
-/// foot far larger than its top); handing it the children's mean
-/// radiosity instead, receivers near the bright part get too little and
-/// those near the dark part too much, and the sum over receivers no
-/// longer equals the light the source sends out (on a room of 0.7 paint
-/// at the preview preset, 0.25 % too much per bounce, 0.8 % in the
-/// absorbed power).
-pub(crate) fn source_shares(scene: &Scene, h: &Hierarchy, links: &[Vec<Link>]) -> Vec<Vec<Shares>> {
+/// For every element, the links (by index in its list) that weigh their
+/// split source's children unequally, with their [`Shares`]: each child's
+/// point-to-polygon form factor from the receiver's centroid. A receiver
+/// near a split source sees its children unequally (a floor next to a
+/// wall sees the wall's foot far larger than its top); handing it the
+/// children's mean radiosity instead, receivers near the bright part get
+/// too little and those near the dark part too much, and the sum over
+/// receivers no longer equals the light the source sends out (on a room of
+/// 0.7 paint at the preview preset, 0.25 % too much per bounce, 0.8 % in
+/// the absorbed power). Far apart, or seen nearly in proportion to area,
+/// the children count by area and the link is not listed.
+pub(crate) fn source_shares(
+    scene: &Scene,
+    h: &Hierarchy,
+    links: &[Vec<Link>],
+) -> Vec<Vec<(u32, Shares)>> {
     links
         .par_iter()
         .enumerate()
@@ -211,13 +233,34 @@ pub(crate) fn source_shares(scene: &Scene, h: &Hierarchy, links: &[Vec<Link>]) -
                     if far_apart(r, n_r, s, n_s) {
                         return [0; 4];
                     }
+                    // Nearly in proportion to area (by the kernel at the
+                    // children's centroids first, which is cheap, then by
+                    // the form factors): the mean is as good, and reads one
+                    // element instead of four.
+                    let even = |w: &[f64; 4]| {
+                        let (lo, hi) = (0..4)
+                            .map(|i| w[i] / h.get(kids[i]).area)
+                            .fold((f64::INFINITY, 0.0f64), |(l, u), x| (l.min(x), u.max(x)));
+                        hi <= EVEN_SHARES * lo
+                    };
+                    let kernel = kids.map(|k| {
+                        let k = h.get(k);
+                        let d = k.centroid() - c;
+                        k.area * (d.dot(n_r) * -d.dot(n_s) / d.length_squared().powi(2)).max(0.0)
+                    });
+                    if even(&kernel) {
+                        return [0; 4];
+                    }
                     let w = kids.map(|k| form_factor_point_polygon(c, n_r, h.get(k).vertices()));
                     let top = w.iter().copied().fold(0.0, f64::max);
-                    if !(top > 0.0) || !top.is_finite() {
+                    if !(top > 0.0) || !top.is_finite() || even(&w) {
                         return [0; 4];
                     }
                     w.map(|w| (255.0 * w / top).round() as u8)
                 })
+                .enumerate()
+                .filter(|(_, w)| *w != [0; 4])
+                .map(|(i, w)| (i as u32, w))
                 .collect()
         })
         .collect()
@@ -225,8 +268,8 @@ pub(crate) fn source_shares(scene: &Scene, h: &Hierarchy, links: &[Vec<Link>]) -
 
 /// The radiosity `source` hands a receiver whose view of its children is
 /// `shares`: their exposed radiosities weighted by share × exposure, or
-/// the source's exposed radiosity when the shares are all zero or see
-/// only buried children.
+/// the source's exposed radiosity when the shares see only buried
+/// children.
 pub(crate) fn seen_radiosity(h: &Hierarchy, source: ElementId, shares: Shares) -> DVec3 {
     let s = h.get(source);
     let Some(kids) = s.children().filter(|_| shares != [0; 4]) else {

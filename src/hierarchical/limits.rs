@@ -22,7 +22,7 @@ use crate::hierarchical::solver::{Pair, Solver};
 /// its list of source shares.
 const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::Element>()
     + std::mem::size_of::<Vec<Link>>()
-    + std::mem::size_of::<Vec<Shares>>()
+    + std::mem::size_of::<Vec<(u32, Shares)>>()
     + 2 * std::mem::size_of::<DVec3>()
     + std::mem::size_of::<Vec<Decision>>()) as u64;
 
@@ -32,7 +32,8 @@ const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::
 /// (the pair with spare capacity, the oracle's step), which is less. Not
 /// every link is being settled at once, so this also covers the spare
 /// capacity of the link lists; and a solve's source shares (4 bytes a
-/// link), which live only while no link is being settled.
+/// link at most, 8 with its index), which live only while no link is
+/// being settled.
 const LINK_BYTES: u64 = (std::mem::size_of::<Link>()
     + std::mem::size_of::<Decision>()
     + std::mem::size_of::<Pair>()

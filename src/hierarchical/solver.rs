@@ -239,11 +239,15 @@ impl<'a> Solver<'a> {
         let mut resampled_links = std::mem::take(&mut self.resampled);
         let mut round_start = Instant::now();
         let max_rounds = acc.max_rounds.max(1);
+        let mut shared = false;
         for round in 0..max_rounds {
             let t = Instant::now();
             out.irradiance.resize(self.hierarchy.len(), DVec3::ZERO);
             let first = out.history.len();
-            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start);
+            // The last solve on the final links weighs split sources by
+            // their shares ([`super::gather::source_shares`]).
+            shared = round + 1 == max_rounds || self.budget.is_some();
+            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, shared);
             times.solve += t.elapsed().as_secs_f64();
             out.rounds.push(Round {
                 round,
@@ -274,6 +278,13 @@ impl<'a> Solver<'a> {
             if split_links == 0 && gradient_splits == 0 && resampled_links == 0 {
                 break;
             }
+        }
+        if !shared {
+            // Refinement changed nothing: once more on these links, with
+            // shares (warm-started: a few iterations).
+            let t = Instant::now();
+            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, true);
+            times.solve += t.elapsed().as_secs_f64();
         }
         out
     }
