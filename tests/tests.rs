@@ -26,10 +26,10 @@ mod discontinuity;
 mod end_to_end;
 // The failure-mode table on the stress scenes.
 mod failure_table;
-// The hard interiors: energy closure per scene and preset, no light through a sealed wall.
-mod hard;
 // The fuzz corpus and pseudo-random inputs through the fuzz targets' bodies.
 mod fuzz_corpus;
+// The hard interiors: energy closure per scene and preset, no light through a sealed wall, a point table.
+mod hard;
 // The hierarchical solver: identities, agreement with a uniform solve, shadows.
 mod hierarchical;
 // View importance: fewer elements, as accurate in the view.
