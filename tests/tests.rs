@@ -28,7 +28,7 @@ mod end_to_end;
 mod failure_table;
 // The fuzz corpus and pseudo-random inputs through the fuzz targets' bodies.
 mod fuzz_corpus;
-// The hard interiors: energy closure per scene and preset, no light through a sealed wall, a point table.
+// The hard interiors: energy closure per scene and preset, no light through a sealed wall, a point table, light through a baffle.
 mod hard;
 // The hierarchical solver: identities, agreement with a uniform solve, shadows.
 mod hierarchical;

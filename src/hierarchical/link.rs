@@ -243,11 +243,11 @@ impl Evaluator<'_> {
     /// The visible fraction and spread of (receiver `r`, source `s`) from
     /// `rays` rays independent of those [`evaluate_link`] casts, and the
     /// rays cast. A link accepted because its own rays saw its source wholly
-    /// hidden (or wholly visible) inside a penumbra keeps this value
-    /// instead: refinement keeps the links whose rays read 0 and refines
-    /// the others, so the deciding reading, kept, loses the light of every
-    /// partly hidden source that happened to read 0 (and gains where they
-    /// read 1).
+    /// hidden (anywhere) or wholly visible (inside a penumbra) keeps this
+    /// value instead: refinement keeps the links whose rays read 0 and
+    /// refines the others, so the deciding reading, kept, loses the light
+    /// of every partly hidden source that happened to read 0 (and gains
+    /// where they read 1); and a link read as dark is dropped for good.
     pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (f64, f64, u64) {
         let (re, se) = (&self.elements[r.index()], &self.elements[s.index()]);
         let mut rng = pair_stream(self.seed ^ FRESH_TAG, r.0, s.0);
