@@ -2,18 +2,19 @@
 //! [`build_mesh`](super::build_mesh)): one pass finds the triangles whose
 //! centroid's point value differs from the interpolation of their vertices
 //! by more than the tolerance, and proposes their centroids as new points.
+//! Centroid values go into the vertex value cache: a triangle left as it
+//! was is not evaluated again in the next pass, and a centroid that
+//! becomes a vertex keeps its value.
 //!
 //! Invariants: only triangles larger than the hierarchy's minimum element
 //! area are checked; the proposals are ordered worst first, ties in check
 //! order (patch, then triangle), so the result does not depend on the
 //! thread count; at most the remaining budget is proposed.
 
-use glam::DVec3;
-use rayon::prelude::*;
-
 use super::{MeshStats, ValueCache};
-use crate::meshing::point_gather::{LinkRays, PointEvaluator};
+use crate::meshing::point_gather::PointEvaluator;
 use crate::meshing::triangulate::PatchTriangulation;
+use glam::DVec3;
 
 /// The difference a centroid may show is measured against its values'
 /// mean plus this fraction of the scene's mean emitted exitance, so that
@@ -38,23 +39,23 @@ impl Adaptivity {
     pub(super) fn centroids_to_add(
         &self,
         tris: &[PatchTriangulation],
-        cache: &ValueCache,
+        cache: &mut ValueCache,
         points: &PointEvaluator,
         room: usize,
         stats: &mut MeshStats,
     ) -> Vec<(usize, DVec3)> {
         let checks = self.centroid_checks(tris, cache);
+        let centroids: Vec<(usize, DVec3)> = checks.iter().map(|&(p, x, _)| (p, x)).collect();
+        stats.evaluations += cache.evaluate(&centroids, points);
         let excess: Vec<f64> = checks
-            .par_iter()
-            .with_min_len(16)
+            .iter()
             .map(|&(p, x, interpolated)| {
-                let b = points.value(p, x, LinkRays::Bright);
+                let b = cache.get(p, x);
                 let scale =
                     self.tol * (0.5 * (b + interpolated).max_element() + DARK * self.exitance);
                 (b - interpolated).abs().max_element() / scale
             })
             .collect();
-        stats.evaluations += checks.len();
         let mut order: Vec<usize> = (0..checks.len()).filter(|&k| excess[k] > 1.0).collect();
         // Worst first; ties in check order (deterministic).
         order.sort_by(|&a, &b| excess[b].total_cmp(&excess[a]).then(a.cmp(&b)));

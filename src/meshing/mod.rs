@@ -281,7 +281,7 @@ impl Mesher<'_> {
 
             let centroids = self.adaptivity.centroids_to_add(
                 &tris,
-                &cache,
+                &mut cache,
                 &self.points,
                 budget - added,
                 stats,
@@ -355,9 +355,9 @@ fn key(patch: usize, x: DVec3) -> Key {
     (patch as u32, position_key(x))
 }
 
-/// The radiosity at every vertex evaluated so far, by patch and exact
-/// position: a vertex kept from one triangulation to the next is evaluated
-/// once.
+/// The radiosity at every vertex (and adaptivity's centroid) evaluated so
+/// far, by patch and exact position: a point kept from one triangulation
+/// to the next is evaluated once.
 #[derive(Default)]
 struct ValueCache(HashMap<Key, DVec3>);
 
@@ -367,18 +367,26 @@ impl ValueCache {
         self.0[&key(patch, x)]
     }
 
-    /// Evaluates every vertex of `tris` not in the cache yet (in parallel,
-    /// each into its own slot); returns how many.
+    /// Evaluates every vertex of `tris` not in the cache yet; returns how
+    /// many.
     fn evaluate_new(&mut self, tris: &[PatchTriangulation], points: &PointEvaluator) -> usize {
-        let mut missing: Vec<(usize, DVec3)> = Vec::new();
+        let all: Vec<(usize, DVec3)> = tris
+            .iter()
+            .enumerate()
+            .flat_map(|(p, tri)| tri.positions.iter().map(move |&x| (p, x)))
+            .collect();
+        self.evaluate(&all, points)
+    }
+
+    /// Evaluates every point (patch, position) of `at` not in the cache yet
+    /// (in parallel, each into its own slot); returns how many.
+    fn evaluate(&mut self, at: &[(usize, DVec3)], points: &PointEvaluator) -> usize {
         let mut seen = HashSet::new();
-        for (p, tri) in tris.iter().enumerate() {
-            for &x in &tri.positions {
-                if !self.0.contains_key(&key(p, x)) && seen.insert(key(p, x)) {
-                    missing.push((p, x));
-                }
-            }
-        }
+        let missing: Vec<(usize, DVec3)> = at
+            .iter()
+            .copied()
+            .filter(|&(p, x)| !self.0.contains_key(&key(p, x)) && seen.insert(key(p, x)))
+            .collect();
         let values: Vec<DVec3> = missing
             .par_iter()
             .with_min_len(16)
