@@ -1,8 +1,9 @@
 //! The hard interiors of `scenes/hard/`: energy closure per closed scene
-//! and preset, no light through the sealed room's wall (at its elements
-//! and at the output mesh's vertices), the box under the table against its
-//! committed path-traced point table, tighter at the finer preset, and
-//! direct light through a baffle by links against rays.
+//! and preset (and in a room whose floor is partly under boxes), no light
+//! through the sealed room's wall (at its elements and at the output
+//! mesh's vertices), the box under the table against its committed
+//! path-traced point table, tighter at the finer preset, and direct light
+//! through a baffle by links against rays.
 
 use glam::DVec3;
 use nusselt::hierarchical::{
@@ -49,7 +50,7 @@ fn presets() -> Vec<(&'static str, Accuracy)> {
 
 #[test]
 fn closed_hard_scenes_absorb_what_they_emit() {
-    // The gallery (clusters) is not in this list yet: it closes to 0.95
+    // The gallery (clusters) is not in this list yet: it closes to 0.963
     // at the default preset (issue 21).
     let mut failures = Vec::new();
     for name in ["sealed-rooms", "table-gap", "corridor"] {
@@ -61,6 +62,27 @@ fn closed_hard_scenes_absorb_what_they_emit() {
             if (ratio - DVec3::ONE).abs().max_element() > 0.005 {
                 failures.push(format!("{name} {preset}: {ratio:.4}"));
             }
+        }
+    }
+    assert!(failures.is_empty(), "off by more than 0.5 %: {failures:?}");
+}
+
+#[test]
+fn light_on_partly_buried_floor_is_not_lost() {
+    // Boxes stand on the floor of a closed room: the floor's elements
+    // along their feet are partly under them. Their irradiance is a mean
+    // over the whole element, and only the exposed part receives and
+    // reflects it. Measured: 0.990 (preview) when the exposed part
+    // reflected only the mean (0.992 at the default), 0.996 and 0.995
+    // since; the bound is the issue's 0.5 %.
+    let scene = crate::fixtures::room(crate::fixtures::LIT_ROOM);
+    let bvh = TriangleBvh::of_scene(&scene);
+    let mut failures = Vec::new();
+    for (preset, accuracy) in presets() {
+        let ratio = closure(&scene, &solve(&scene, &bvh, accuracy));
+        eprintln!("room with standing boxes, {preset}: absorbed / emitted {ratio:.4}");
+        if (ratio - DVec3::ONE).abs().max_element() > 0.005 {
+            failures.push(format!("{preset}: {ratio:.4}"));
         }
     }
     assert!(failures.is_empty(), "off by more than 0.5 %: {failures:?}");
