@@ -135,7 +135,7 @@ fn grid(q: [DVec3; 4], n: usize, surface: u32, material: u32, out: &mut Vec<Inpu
 
 /// The six faces of the box [lo, hi], counter-clockwise seen from outside
 /// (reverse each for the inside), bottom face first.
-fn box_faces(lo: DVec3, hi: DVec3) -> [[DVec3; 4]; 6] {
+pub fn box_faces(lo: DVec3, hi: DVec3) -> [[DVec3; 4]; 6] {
     let p = |x: f64, y: f64, z: f64| {
         DVec3::new(
             lo.x + x * (hi.x - lo.x),

@@ -2,8 +2,9 @@
 //! and preset (and in a room whose floor is partly under boxes), no light
 //! through the sealed room's wall (at its elements and at the output
 //! mesh's vertices), the box under the table against its committed
-//! path-traced point table, tighter at the finer preset, and direct light
-//! through a baffle by links against rays.
+//! path-traced point table, tighter at the finer preset, direct light
+//! through a baffle by links against rays, and a dim room resolved like a
+//! bright one by the relative bf threshold.
 
 use glam::DVec3;
 use nusselt::hierarchical::{
@@ -86,6 +87,80 @@ fn light_on_partly_buried_floor_is_not_lost() {
         }
     }
     assert!(failures.is_empty(), "off by more than 0.5 %: {failures:?}");
+}
+
+/// Two closed rooms alike, 10 m apart, each lit by a 1 m² ceiling lamp
+/// and holding a box on its floor; the second lamp is `dim` times the
+/// first. Patches of the first room come first; returns the scene and the
+/// patch count of one room.
+fn twin_rooms(dim: f64) -> (Scene, usize) {
+    use crate::fixtures::{box_faces, painted};
+    let mut quads = Vec::new();
+    for dx in [0.0, 10.0] {
+        let o = DVec3::new(dx, 0.0, 0.0);
+        for q in box_faces(o, o + DVec3::new(4.0, 3.0, 5.0)) {
+            quads.push(([q[0], q[3], q[2], q[1]], 6, false));
+        }
+        let lamp = [(1.5, 2.0), (2.5, 2.0), (2.5, 3.0), (1.5, 3.0)]
+            .map(|(x, z)| o + DVec3::new(x, 2.99, z));
+        quads.push((lamp, 1, true));
+        let lo = o + DVec3::new(1.0, 0.0, 1.5);
+        for q in &box_faces(lo, lo + DVec3::new(1.2, 0.8, 1.0))[1..] {
+            quads.push((*q, 3, false));
+        }
+    }
+    let mut scene = painted(&quads, 0.5, 0.0);
+    let half = scene.patches.len() / 2;
+    for p in &mut scene.patches[half..] {
+        p.emission *= dim;
+    }
+    (scene, half)
+}
+
+#[test]
+fn a_dim_room_is_resolved_like_a_bright_one_with_the_relative_threshold() {
+    // Radiosity is linear in the emission: the dim room's solution is the
+    // bright room's times `dim`. An absolute threshold resolves the dim
+    // room far more coarsely (its links' errors are small in W/m², large
+    // against its radiosity); the relative one follows each receiver's
+    // radiosity down to its floor. Measured: leaves dim / bright 0.055
+    // absolute, 0.80 relative; the dim room's patch means against the
+    // bright room's, scaled: 0.34 % absolute, 0.22 % relative
+    // (area-weighted; patch means converge long before the leaves do).
+    let dim = 1.0 / 16.0;
+    let (scene, half) = twin_rooms(dim);
+    let bvh = TriangleBvh::of_scene(&scene);
+    let measure = |floor: f64| {
+        let accuracy = Accuracy {
+            bf_relative_floor: floor,
+            ..Accuracy::default()
+        };
+        let s = solve(&scene, &bvh, accuracy);
+        let h = &s.hierarchy;
+        let mut leaves = [0usize; 2];
+        for id in h.leaves() {
+            leaves[usize::from(h.get(id).patch as usize >= half)] += 1;
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for p in 0..half {
+            let (bright, faint) = (h.elements[p].radiosity.x, h.elements[p + half].radiosity.x);
+            num += scene.patches[p].area * (faint / dim - bright).abs();
+            den += scene.patches[p].area * bright;
+        }
+        (leaves[1] as f64 / leaves[0] as f64, num / den)
+    };
+    let (leaves_abs, diff_abs) = measure(1.0);
+    let (leaves_rel, diff_rel) = measure(1.0 / 32.0);
+    eprintln!(
+        "leaves dim / bright: absolute {leaves_abs:.3}, relative {leaves_rel:.3}; \
+         dim room × 16 against the bright room: absolute {diff_abs:.4}, relative {diff_rel:.4}"
+    );
+    assert!(leaves_abs < 0.2, "{leaves_abs}");
+    assert!(leaves_rel > 0.6, "{leaves_rel}");
+    assert!(
+        diff_rel < diff_abs && diff_rel < 0.003,
+        "{diff_rel} vs {diff_abs}"
+    );
 }
 
 /// Area-weighted mean luminance-like value (channel mean) over the

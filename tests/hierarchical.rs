@@ -436,6 +436,7 @@ fn visibility_rays_follow_what_the_decision_needs() {
         oracle: Oracle::Bf,
         ff_eps: 0.0,
         bf_eps: 0.01,
+        bf_relative: None,
         power_eps: 0.0,
         cluster_eps: 0.0,
         min_area: 0.0,

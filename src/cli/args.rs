@@ -110,6 +110,11 @@ pub struct HierarchicalArgs {
     /// keep, as a fraction of the mean emitted exitance.
     #[arg(long)]
     pub bf_eps: Option<f64>,
+    /// bf oracle, relative mode: a link's threshold follows its receiver's
+    /// radiosity, down to this fraction of the threshold for receivers
+    /// dimmer than the mean emitted exitance by as much (1: absolute).
+    #[arg(long, value_name = "FLOOR")]
+    pub bf_relative_floor: Option<f64>,
     /// power oracle: largest power a link may carry, as a fraction of the
     /// largest patch emitted power.
     #[arg(long)]
@@ -169,6 +174,7 @@ impl HierarchicalArgs {
         for (slot, v) in [
             (&mut a.ff_eps, self.ff_eps),
             (&mut a.bf_eps, self.bf_eps),
+            (&mut a.bf_relative_floor, self.bf_relative_floor),
             (&mut a.power_eps, self.power_eps),
             (&mut a.cluster_eps, self.cluster_eps),
             (&mut a.min_area, self.min_area),

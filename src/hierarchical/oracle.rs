@@ -4,12 +4,16 @@
 //! integrated.
 //!
 //! Owns: [`Oracle`], [`Thresholds`], [`Decision`], [`decide`],
-//! [`link_error`], [`rays_needed`], [`shadow_error`], [`sharpen`].
+//! [`link_error`], [`receiver_threshold`], [`rays_needed`],
+//! [`shadow_error`], [`sharpen`].
 //!
 //! Invariants:
 //! - A decision depends only on the link, its two elements, the source's
-//!   state and the receiver's (importance-weighted) reflectance.
-//! - Thresholds are absolute (already scaled to the scene by the solver).
+//!   state and the receiver's (importance-weighted) reflectance and, in
+//!   the relative bf mode, the receiver's radiosity.
+//! - Thresholds are absolute (already scaled to the scene by the solver);
+//!   the relative bf mode scales the brightness threshold per receiver by
+//!   [`receiver_threshold`], in (0, 1].
 //! - A link's rays never select on their own noise: a link the oracle
 //!   accepts whatever its visibility takes [`FEW_RAYS`]; any other takes
 //!   the full count, so a decision that hangs on V is made on the full
@@ -35,6 +39,10 @@ use crate::scene::Scene;
 /// receiver's own (unweighted) reflectance.
 pub fn sharpen(scene: &Scene, t: &Thresholds, link: &mut Link, ends: &Ends) {
     let (receiver, source) = (ends.receiver, ends.source);
+    let t = &Thresholds {
+        bf_eps: t.bf_eps * receiver_threshold(t, receiver),
+        ..*t
+    };
     let patch = |e: &Element| &scene.patches[e.patch as usize];
     let rho = patch(receiver).reflectance;
     let tolerance = sharpen_tolerance(t, link, receiver.area, rho, &ends.state);
@@ -116,6 +124,10 @@ pub struct Thresholds {
     pub ff_eps: f64,
     /// Absolute radiosity threshold, W/m² (bf).
     pub bf_eps: f64,
+    /// bf, relative mode: (floor, M). The threshold for a receiver of
+    /// radiosity B_r is `bf_eps` × clamp(B_r / M, floor, 1), B_r the
+    /// largest channel ([`receiver_threshold`]). `None`: absolute.
+    pub bf_relative: Option<(f64, f64)>,
     /// Absolute power threshold, W (power).
     pub power_eps: f64,
     /// Absolute cluster-link threshold, W/m² ([`crate::hierarchical::cluster`]).
@@ -182,11 +194,25 @@ pub fn rays_needed(t: &Thresholds, link: &Link, ends: &Ends) -> usize {
     let (f, f_err) = (link.form_factor as f64, link.error as f64);
     let worst = Link::new(link.source, f, f_err, 1.0, 1.0, FEW_RAYS);
     let (error, eps) = link_error(t, &worst, receiver.area, ends.reflectance, &ends.state);
+    let eps = eps * receiver_threshold(t, receiver);
     let minimal = !(receiver.area > t.min_area) && !(source.area > t.min_area);
     if error <= eps || minimal {
         FEW_RAYS
     } else {
         most
+    }
+}
+
+/// The factor on the bf threshold for links into `receiver`: 1, or in the
+/// relative mode ([`Thresholds::bf_relative`]) clamp(B_r / M, floor, 1),
+/// from the receiver's radiosity as the last solve left it (still 0 before
+/// the first: the floor).
+pub fn receiver_threshold(t: &Thresholds, receiver: &Element) -> f64 {
+    match (t.oracle, t.bf_relative) {
+        (Oracle::Bf, Some((floor, m))) if m > 0.0 => {
+            (receiver.radiosity.max_element() / m).clamp(floor, 1.0)
+        }
+        _ => 1.0,
     }
 }
 
@@ -300,6 +326,7 @@ pub fn decide(t: &Thresholds, link: &Link, ends: &Ends) -> Decision {
     let (receiver, source) = (ends.receiver, ends.source);
     let (receiver_reflectance, state) = (ends.reflectance, &ends.state);
     let (error, eps) = link_error(t, link, receiver.area, receiver_reflectance, state);
+    let eps = eps * receiver_threshold(t, receiver);
     if !(error > eps) {
         return Decision::Accept;
     }
@@ -343,6 +370,7 @@ mod tests {
             oracle: Oracle::Bf,
             ff_eps: 0.0,
             bf_eps: 1.0,
+            bf_relative: None,
             power_eps: 0.0,
             cluster_eps: 0.0,
             min_area: 0.0,

@@ -33,6 +33,12 @@ pub struct Accuracy {
     /// bf oracle: largest accepted ρ_r B_s (V F_err + V_err F + V_err F_err),
     /// as a fraction of the mean emitted exitance (Φ / A_total).
     pub bf_eps: f64,
+    /// bf oracle, relative mode: a link's threshold follows its receiver's
+    /// radiosity B_r, `bf_eps` × clamp(B_r / M, floor, 1) with M the mean
+    /// emitted exitance, so that receivers dimmer than M are resolved to
+    /// the same relative error down to `floor` × M. 1 keeps the absolute
+    /// threshold (every preset).
+    pub bf_relative_floor: f64,
     /// power oracle: largest accepted A_r F V ρ_r B_s, as a fraction of the
     /// largest patch emitted power.
     pub power_eps: f64,
@@ -61,6 +67,7 @@ impl Accuracy {
         Accuracy {
             ff_eps: 0.05,
             bf_eps: 0.2,
+            bf_relative_floor: 1.0,
             power_eps: 1e-3,
             cluster_eps: 0.02,
             min_area: 1e-4,
@@ -78,6 +85,7 @@ impl Accuracy {
         Accuracy {
             ff_eps: 0.01,
             bf_eps: 0.03,
+            bf_relative_floor: 1.0,
             power_eps: 1e-4,
             cluster_eps: 0.003,
             min_area: 2e-5,
@@ -93,6 +101,7 @@ impl Accuracy {
         Accuracy {
             ff_eps: 0.002,
             bf_eps: 0.006,
+            bf_relative_floor: 1.0,
             power_eps: 2e-5,
             cluster_eps: 0.0006,
             min_area: 4e-6,
@@ -209,6 +218,9 @@ impl HierarchicalSettings {
             if !(v > 0.0 && v.is_finite()) {
                 return Err(setting(format!("--{name} must be a positive number")));
             }
+        }
+        if !(a.bf_relative_floor > 0.0 && a.bf_relative_floor <= 1.0) {
+            return Err(setting("--bf-relative-floor must be in (0, 1]"));
         }
         if !(a.gradient_tol >= 0.0 && a.gradient_tol.is_finite()) {
             return Err(setting("--gradient-tol must be zero or positive"));

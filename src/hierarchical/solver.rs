@@ -157,6 +157,7 @@ fn scaled_thresholds(scene: &Scene, settings: &HierarchicalSettings) -> Threshol
         oracle: settings.oracle,
         ff_eps: acc.ff_eps,
         bf_eps: acc.bf_eps * exitance,
+        bf_relative: (acc.bf_relative_floor < 1.0).then_some((acc.bf_relative_floor, exitance)),
         cluster_eps: acc.cluster_eps * exitance,
         power_eps: acc.power_eps * largest_power,
         min_area: acc.min_area * area,
@@ -187,7 +188,12 @@ impl<'a> Solver<'a> {
             scene,
             bvh,
             settings,
-            thresholds: scaled_thresholds(scene, settings),
+            // The relative bf threshold needs the receivers' radiosity:
+            // from the first refinement on ([`Solver::run_rounds`]).
+            thresholds: Thresholds {
+                bf_relative: None,
+                ..scaled_thresholds(scene, settings)
+            },
             hierarchy: Hierarchy::new(scene),
             links: vec![Vec::new(); scene.patches.len()],
             n_links: 0,
@@ -271,6 +277,7 @@ impl<'a> Solver<'a> {
             round_start = Instant::now();
             let t = Instant::now();
             self.update_importance();
+            self.thresholds.bf_relative = scaled_thresholds(self.scene, self.settings).bf_relative;
             split_links = self.refine();
             gradient_splits = self.refine_gradients(acc.gradient_tol * exitance);
             resampled_links = std::mem::take(&mut self.resampled);

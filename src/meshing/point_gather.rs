@@ -21,6 +21,7 @@ use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchical::HierarchicalSolution;
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::weighted_visibility;
+use crate::hierarchical::oracle::receiver_threshold;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
 use crate::util::geometry::outside_polygon;
@@ -152,7 +153,8 @@ pub fn point_radiosity(
         let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
         (total > 0.0).then(|| seen / total)
     };
-    let dim_light = DIM_LINK_FRACTION * solution.thresholds.bf_eps;
+    let t = &solution.thresholds;
+    let dim_light = DIM_LINK_FRACTION * t.bf_eps * receiver_threshold(t, e);
     let mut irradiance = DVec3::ZERO;
     let dark = gather.dark.get(e.patch as usize).copied().unwrap_or(0);
     for (i, &k) in gather.direct.iter().enumerate() {
