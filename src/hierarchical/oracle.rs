@@ -205,8 +205,8 @@ pub fn rays_needed(t: &Thresholds, link: &Link, ends: &Ends) -> usize {
 
 /// The factor on the bf threshold for links into `receiver`: 1, or in the
 /// relative mode ([`Thresholds::bf_relative`]) clamp(B_r / M, floor, 1),
-/// from the receiver's radiosity as the last solve left it (still 0 before
-/// the first: the floor).
+/// from the receiver's radiosity as the last solve left it (the solver
+/// turns the mode on only after its first solve).
 pub fn receiver_threshold(t: &Thresholds, receiver: &Element) -> f64 {
     match (t.oracle, t.bf_relative) {
         (Oracle::Bf, Some((floor, m))) if m > 0.0 => {

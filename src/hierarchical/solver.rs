@@ -246,6 +246,7 @@ impl<'a> Solver<'a> {
         let mut round_start = Instant::now();
         let max_rounds = acc.max_rounds.max(1);
         let mut shared = false;
+        let relative = scaled_thresholds(self.scene, self.settings).bf_relative;
         for round in 0..max_rounds {
             let t = Instant::now();
             out.irradiance.resize(self.hierarchy.len(), DVec3::ZERO);
@@ -277,7 +278,7 @@ impl<'a> Solver<'a> {
             round_start = Instant::now();
             let t = Instant::now();
             self.update_importance();
-            self.thresholds.bf_relative = scaled_thresholds(self.scene, self.settings).bf_relative;
+            self.thresholds.bf_relative = relative;
             split_links = self.refine();
             gradient_splits = self.refine_gradients(acc.gradient_tol * exitance);
             resampled_links = std::mem::take(&mut self.resampled);
