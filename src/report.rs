@@ -157,6 +157,12 @@ pub struct Report {
     /// view's importance (`null` when it was not).
     #[serde(default)]
     pub importance: Option<ImportanceReport>,
+    /// The solve's own estimate of its vertex error: how much the vertices
+    /// that coplanar patches share disagree (`meshing::seams`; a lower
+    /// bound, blind to a bias all patches share). `null` when no two
+    /// coplanar patches meet.
+    #[serde(default)]
+    pub estimated_error: Option<crate::meshing::seams::SeamSteps>,
     /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
     pub max_row_sum: f64,
     /// Mean Σ_j F_ij over the rows.

@@ -166,6 +166,28 @@ impl TriangleBvh {
             .collect()
     }
 
+    /// Whether the point `x` of a surface with normal `n` is buried: rays
+    /// from just above it, along `n` and in four directions 70° from it,
+    /// all meet the back of a single-sided surface first (a floor point
+    /// under a box, a point inside a closed solid; not one under a plate
+    /// that light reaches from the side). Such a point sees only backs and
+    /// receives nothing. Stops at the first ray that escapes.
+    pub fn buried(&self, scene: &Scene, x: DVec3, n: DVec3) -> bool {
+        let diagonal = scene.diagonal();
+        let from = x + 1e-6 * diagonal * n;
+        let (t, b) = n.any_orthonormal_pair();
+        let (sin, cos) = 70f64.to_radians().sin_cos();
+        let tilted = [t, b, -t, -b].map(|d| cos * n + sin * d);
+        std::iter::once(n).chain(tilted).all(|d| {
+            self.closest_hit(from, d, 2.0 * diagonal)
+                .is_some_and(|hit| {
+                    let tri = &scene.triangles[hit.triangle as usize];
+                    let p = tri.positions;
+                    tri.back_patch.is_none() && (p[1] - p[0]).cross(p[2] - p[0]).dot(d) > 0.0
+                })
+        })
+    }
+
     /// The closest triangle hit by the ray `origin + t·direction`,
     /// `t` in (0, t_max].
     pub fn closest_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<Hit> {

@@ -3,8 +3,9 @@
 //! through the sealed room's wall (at its elements and at the output
 //! mesh's vertices), the box under the table against its committed
 //! path-traced point table, tighter at the finer preset, direct light
-//! through a baffle by links against rays, and a dim room resolved like a
-//! bright one by the relative bf threshold.
+//! through a baffle by links against rays, a dim room resolved like a
+//! bright one by the relative bf threshold, and no steps in the vertex
+//! values where the patches of a smoothly lit wall meet.
 
 use glam::DVec3;
 use nusselt::hierarchical::{
@@ -364,4 +365,161 @@ fn light_through_a_baffle_is_what_rays_see() {
         (ratio - 1.0).abs() < 0.025,
         "links deliver {ratio:.4} × what rays see"
     );
+}
+
+#[test]
+fn a_smoothly_lit_wall_has_no_steps_at_its_patch_edges() {
+    // A closed room whose faces are 8 × 8 grids of patches, clusters on (so
+    // that cluster links carry part of every patch's light), lit by a
+    // ceiling panel. Where two patches of one wall meet, their shared
+    // vertices are separate gathers of one irradiance: they must agree
+    // (`meshing::seams`, the report's `estimated_error`). The leaves' own
+    // means, which step from patch to patch, show that the measure sees a
+    // checkerboard when there is one.
+    use crate::fixtures::{Room, room};
+    use nusselt::hierarchical::Clustering;
+    use nusselt::meshing::seams::seam_steps;
+    use nusselt::pipeline::{SolveSettings, solve as solve_scene};
+    use nusselt::render::view::ViewOverrides;
+
+    let scene = room(Room {
+        n: 8,
+        blocks: 0,
+        floating: false,
+        rho: 0.6,
+        furnace: false,
+    });
+    // Bounds (p90, median) of the relative steps; measured 4.9 %, 1.6 %
+    // (preview) and 0.77 %, 0.19 % (default); the leaves' means 22–24 %,
+    // 8–10 %.
+    for (preset, accuracy, bound) in [
+        ("preview", Accuracy::preview(), (0.07, 0.025)),
+        ("default", Accuracy::default(), (0.015, 0.005)),
+    ] {
+        let mut settings = SolveSettings::default();
+        settings.hierarchical.accuracy = accuracy.clone();
+        settings.hierarchical.clustering = Clustering::On;
+        settings.view = ViewOverrides {
+            width: Some(32),
+            height: Some(24),
+            ..ViewOverrides::default()
+        };
+        let run = solve_scene(&scene, &settings, &Progress::hidden()).unwrap();
+        let steps = run.report.estimated_error.expect("the walls have seams");
+        eprintln!("{preset}: {steps:?}");
+        assert!(steps.pairs > 500, "{preset}: {} seam pairs", steps.pairs);
+        assert!(
+            steps.p90 <= bound.0 && steps.median <= bound.1,
+            "{preset}: vertices across patch edges disagree: {steps:?}"
+        );
+
+        let bvh = TriangleBvh::of_scene(&scene);
+        let hs = HierarchicalSettings {
+            accuracy,
+            clustering: Clustering::On,
+            ..HierarchicalSettings::default()
+        };
+        let s = solve_hierarchical(&scene, &bvh, &hs, &Progress::hidden());
+        let leaf_means = seam_steps(
+            &scene,
+            &output_mesh(&scene, &bvh, &s, VertexValues::LeafMean),
+        )
+        .expect("the walls have seams");
+        eprintln!("{preset}, leaf means: {leaf_means:?}");
+        assert!(
+            leaf_means.p90 > 2.0 * steps.p90,
+            "{preset}: leaf means {leaf_means:?} against {steps:?}"
+        );
+    }
+}
+
+#[test]
+fn the_floor_under_a_pedestal_stays_dark() {
+    // A closed room lit by a ceiling panel, clusters on, with a closed
+    // pedestal (a box turned 30° about the vertical, its bottom face on the
+    // floor) standing across four floor patches. The floor under it is
+    // sealed off: at its leaves and at the output mesh's vertices inside
+    // the footprint the radiosity must be nil, direct and indirect.
+    use crate::fixtures::{box_faces, painted};
+    use nusselt::hierarchical::Clustering;
+
+    let turn = glam::DQuat::from_rotation_y(30f64.to_radians());
+    let centre = DVec3::new(2.0, 0.0, 2.5);
+    let place = |p: DVec3| centre + turn * (p - DVec3::new(0.35, 0.0, 0.35));
+    let mut quads = Vec::new();
+    for q in box_faces(DVec3::ZERO, DVec3::new(4.0, 3.0, 5.0)) {
+        quads.push(([q[0], q[3], q[2], q[1]], 4, false));
+    }
+    let lamp =
+        [(1.5, 2.0), (2.5, 2.0), (2.5, 3.0), (1.5, 3.0)].map(|(x, z)| DVec3::new(x, 2.99, z));
+    quads.push((lamp, 1, true));
+    let faces = box_faces(DVec3::ZERO, DVec3::new(0.7, 1.1, 0.7));
+    for q in &faces {
+        quads.push((q.map(place), 3, false));
+    }
+    let scene = painted(&quads, 0.6, 0.0);
+    let footprint: Vec<DVec3> = faces[0].iter().map(|&p| place(p)).collect();
+    let under = |p: DVec3, inset: f64| {
+        // The footprint is convex; its corners run one way round.
+        (0..4).all(|i| {
+            let (a, b) = (footprint[i], footprint[(i + 1) % 4]);
+            let side = (b - a).cross(p - a).y / (b - a).length();
+            side.abs() >= inset && side.signum() == (b - a).cross(centre - a).y.signum()
+        })
+    };
+    let bvh = TriangleBvh::of_scene(&scene);
+    for (preset, accuracy) in [
+        ("preview", Accuracy::preview()),
+        ("default", Accuracy::default()),
+    ] {
+        let hs = HierarchicalSettings {
+            accuracy,
+            clustering: Clustering::On,
+            ..HierarchicalSettings::default()
+        };
+        let s = solve_hierarchical(&scene, &bvh, &hs, &Progress::hidden());
+        let on_floor = |p: u32| {
+            scene.patches[p as usize].normal.y > 0.99
+                && scene.patches[p as usize].corners[0].y.abs() < 1e-9
+        };
+        let (mut lit, mut area, mut worst_leaf, mut buried) = (0.0, 0.0, 0.0f64, 0);
+        for leaf in s.hierarchy.leaves() {
+            let e = s.hierarchy.get(leaf);
+            if !on_floor(e.patch) {
+                continue;
+            }
+            let b = e.radiosity.element_sum() / 3.0;
+            if e.vertices().iter().all(|&v| under(v, 0.0)) {
+                worst_leaf = worst_leaf.max(b);
+                buried += 1;
+            } else {
+                lit += b * e.area;
+                area += e.area;
+            }
+        }
+        let lit = lit / area;
+        let mesh = output_mesh(&scene, &bvh, &s, VertexValues::PointGather { seed: 3 });
+        let (mut worst_vertex, mut inside) = (0.0f64, 0);
+        for (v, &p) in mesh.patch.iter().enumerate() {
+            if on_floor(p) && under(mesh.positions[v].as_dvec3(), 0.02) {
+                worst_vertex = worst_vertex.max(f64::from(mesh.radiosity[v].max_element()));
+                inside += 1;
+            }
+        }
+        eprintln!(
+            "{preset}: floor {lit:.4}; {buried} leaves under the pedestal, brightest {worst_leaf:.2e}; {inside} vertices, brightest {worst_vertex:.2e}"
+        );
+        assert!(
+            buried > 0 && inside > 0,
+            "{preset}: nothing under the pedestal"
+        );
+        assert!(
+            worst_leaf <= 1e-3 * lit,
+            "{preset}: a leaf under the pedestal at {worst_leaf}"
+        );
+        assert!(
+            worst_vertex <= 1e-3 * lit,
+            "{preset}: a vertex under the pedestal at {worst_vertex}"
+        );
+    }
 }

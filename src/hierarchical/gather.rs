@@ -13,10 +13,12 @@
 //! it in would dim the link a second time after its visibility already
 //! did. Leaves measure their exposure (rays along the normal from
 //! jittered points that meet a back face first); push-pull carries it up.
-//! A leaf's irradiance H is its mean over the whole leaf, and only the
-//! exposed part receives it (rays from the buried part are blocked): the
-//! exposed part reflects H / exposure, so light landing on a partly
-//! buried leaf is sent on, not lost.
+//! An element's irradiance H is its mean over the whole element, and only
+//! the exposed part receives it (rays from the buried part are blocked):
+//! push-down hands a child e_child / e_parent of its parent's H, so a
+//! buried child gets none and Σ A·H is kept, and a leaf's exposed part
+//! reflects H / exposure, so light landing on a partly buried leaf is sent
+//! on, not lost.
 //!
 //! In the final solve, a link to a split source weighs the source's
 //! children as its receiver sees them ([`source_shares`]), not by area:
@@ -46,8 +48,6 @@ impl Solver<'_> {
     /// meanwhile get theirs from their children in push-pull.
     pub(super) fn measure_exposure(&mut self) {
         let (scene, bvh, seed) = (self.scene, self.bvh, self.settings.seed);
-        let gap = 1e-6 * scene.diagonal();
-        let far = 2.0 * scene.diagonal();
         let first = self.measured;
         let h = &mut self.hierarchy;
         h.elements[first..]
@@ -61,13 +61,7 @@ impl Solver<'_> {
                 let sampler = PolygonSampler::new(e.vertices());
                 let buried = stratified(EXPOSURE_RAYS, &mut rng)
                     .into_iter()
-                    .filter(|&t| {
-                        let from = sampler.point(t) + gap * n;
-                        bvh.closest_hit(from, n, far).is_some_and(|hit| {
-                            let t = scene.triangles[hit.triangle as usize].positions;
-                            (t[1] - t[0]).cross(t[2] - t[0]).dot(n) > 0.0
-                        })
-                    })
+                    .filter(|&t| bvh.buried(scene, sampler.point(t), n))
                     .count();
                 e.exposure = 1.0 - buried as f32 / EXPOSURE_RAYS as f32;
             });
@@ -153,11 +147,20 @@ impl Solver<'_> {
     pub(super) fn push_pull(&mut self, gathered: &[DVec3], irradiance: &mut [DVec3]) -> f64 {
         // Parents precede children in the arena: push down in arena order,
         // then pull up in reverse.
+        // An element's irradiance is its mean over its whole area, received
+        // by its exposed part only, so a child gets its parent's share by
+        // exposure: e_child / e_parent of the parent's mean (Σ A·H is kept,
+        // and a buried child gets none).
         let h = &mut self.hierarchy;
         for i in 0..h.len() {
-            let down = h.elements[i]
-                .parent()
-                .map_or(DVec3::ZERO, |p| irradiance[p.index()]);
+            let e = &h.elements[i];
+            let down = e.parent().map_or(DVec3::ZERO, |p| {
+                let parent = f64::from(h.elements[p.index()].exposure);
+                match parent > 0.0 {
+                    true => irradiance[p.index()] * (f64::from(e.exposure) / parent),
+                    false => DVec3::ZERO,
+                }
+            });
             irradiance[i] = gathered[i] + down;
         }
         for i in (0..h.len()).rev() {

@@ -142,12 +142,17 @@ impl HierarchicalSolution {
                     .sum()
             })
             .collect();
-        // Parents precede their children in the arena.
+        // Parents precede their children in the arena; a child gets its
+        // parent's mean by exposure, as in the solve.
         let mut total = own;
         for i in 0..h.len() {
-            if let Some(p) = h.elements[i].parent() {
-                let up = total[p.index()];
-                total[i] += up;
+            let e = &h.elements[i];
+            if let Some(p) = e.parent() {
+                let parent = f64::from(h.elements[p.index()].exposure);
+                if parent > 0.0 {
+                    let down = total[p.index()] * (f64::from(e.exposure) / parent);
+                    total[i] += down;
+                }
             }
         }
         total

@@ -37,6 +37,8 @@
 //!    surface stays closed.
 //!
 //! [`leaf`] is the plain alternative: each leaf triangulated on its own.
+//! [`seams`] reads any output mesh back: the report's estimate of its
+//! vertex error.
 //!
 //! Invariants: the mesh passes [`OutputMesh::validate`]; along patch edges
 //! neighbouring patches have the same vertex positions (no cracks, no
@@ -46,6 +48,7 @@
 
 pub mod leaf;
 pub mod point_gather;
+pub mod seams;
 pub mod triangulate;
 
 mod adapt;

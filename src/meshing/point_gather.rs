@@ -143,6 +143,10 @@ pub fn point_radiosity(
     let e = h.get(leaf);
     let patch = &scene.patches[e.patch as usize];
     let x = x + 1e-6 * (e.centroid() - x);
+    if bvh.buried(scene, x, patch.normal) {
+        // Under a box, inside a solid: nothing reaches the point.
+        return patch.emission;
+    }
     // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
     let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
         let mut rng = pair_stream(seed, leaf.0, stream);
@@ -179,10 +183,15 @@ pub fn point_radiosity(
             irradiance += f * v.unwrap_or(0.0) * emitter.emission;
         }
     }
-    if let Some(c) = solution.cluster_irradiance.get(e.patch as usize) {
-        irradiance += *c;
-        if !gather.direct.is_empty() {
-            irradiance -= solution.cluster_direct[e.patch as usize];
+    if let Some(&c) = solution.cluster_irradiance.get(e.patch as usize) {
+        // The patch's mean, which only its exposed part receives.
+        let c = match gather.direct.is_empty() {
+            true => c,
+            false => c - solution.cluster_direct[e.patch as usize],
+        };
+        let exposure = f64::from(h.elements[e.patch as usize].exposure);
+        if exposure > 0.0 {
+            irradiance += c / exposure;
         }
     }
     let mut id = Some(leaf);

@@ -108,6 +108,7 @@ pub(super) fn solve(
         "width": view.width,
         "height": view.height,
     });
+    report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
     Ok(finish(report, view, out, frame, snapshots, start, settings))
 }
 

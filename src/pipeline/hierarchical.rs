@@ -78,6 +78,7 @@ pub(super) fn solve(
         ..solution_counts(scene, &solution)
     };
     report.settings = settings_json(settings, &hs, &solution, &view);
+    report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
     Ok(finish(report, view, out, frame, snapshots, start, settings))
 }
 
