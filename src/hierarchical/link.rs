@@ -26,7 +26,10 @@
 //! quadrature over the smaller element decides. Quadratures always run
 //! over the smaller element.
 //!
-//! Visibility: the kernel-weighted unoccluded fraction of N rays between
+//! Visibility: exactly 1 with no ray when no occluder stands in the shaft
+//! between the two elements ([`crate::visibility::Shaft`]; the link is
+//! then [`Link::unobstructed`], for its receiver's descendants too); else
+//! the kernel-weighted unoccluded fraction of N rays between
 //! stratified points of the two elements, and its spread over the
 //! receiver's quarters (a shadow edge crossing it). N comes from the
 //! caller's plan (the oracle's `rays_needed`); a link records its N.
@@ -42,7 +45,7 @@ use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_c
 use crate::hierarchical::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
-use crate::visibility::TriangleBvh;
+use crate::visibility::{Shaft, TriangleBvh};
 
 /// One interaction, kept in its receiver's list (16 bytes).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,16 +63,21 @@ pub struct Link {
     /// the receiver varies this link's light over it.
     spread: u8,
     /// Visibility rays per receiver quarter the estimate stands for (0: no
-    /// visibility was sampled).
+    /// visibility was sampled), and in the top bit [`UNOBSTRUCTED`].
     quarter_rays: u8,
 }
+
+/// Set in [`Link`]'s `quarter_rays` when nothing stands in the shaft
+/// between receiver and source: every point of the receiver, and of its
+/// descendants, sees the source whole.
+const UNOBSTRUCTED: u8 = 0x80;
 
 fn to_fixed(x: f64) -> u16 {
     (x.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16
 }
 
 /// Most rays per receiver quarter a link records ([`Link::rays`]).
-pub const MAX_QUARTER_RAYS: usize = u8::MAX as usize;
+pub const MAX_QUARTER_RAYS: usize = (UNOBSTRUCTED - 1) as usize;
 
 impl Link {
     /// A link with the given values, each clamped to [0, 1] (errors to ≥ 0);
@@ -93,6 +101,21 @@ impl Link {
         }
     }
 
+    /// A wholly visible link whose shaft holds no occluder (see
+    /// [`Link::unobstructed`]), standing for `rays` rays.
+    pub fn unobstructed_link(source: ElementId, form_factor: f64, error: f64, rays: usize) -> Link {
+        let mut link = Link::new(source, form_factor, error, 1.0, 0.0, rays);
+        link.quarter_rays |= UNOBSTRUCTED;
+        link
+    }
+
+    /// True when nothing stands between receiver and source (shaft
+    /// culling, not rays): every point of the receiver and of its
+    /// descendants sees the source whole.
+    pub fn unobstructed(&self) -> bool {
+        self.quarter_rays & UNOBSTRUCTED != 0
+    }
+
     /// Visible fraction V in [0, 1].
     pub fn visibility(&self) -> f64 {
         f64::from(self.visibility) / f64::from(u16::MAX)
@@ -105,7 +128,7 @@ impl Link {
 
     /// Visibility rays the link's V stands for.
     pub fn rays(&self) -> usize {
-        4 * self.quarter_rays as usize
+        4 * (self.quarter_rays & !UNOBSTRUCTED) as usize
     }
 
     /// True when some but not all visibility rays were blocked.
@@ -189,6 +212,10 @@ pub enum Inherited {
     /// The refined link saw its source whole: one probe ray per receiver
     /// quarter first (`sample_visibility`).
     WhollyVisible,
+    /// Nothing stood between the refined link's ends
+    /// ([`Link::unobstructed`]), so nothing stands between any of their
+    /// parts: no shaft query, no ray.
+    Unobstructed,
     /// The refined link saw its source in part: the new link lies in a
     /// penumbra, where a visibility of exactly 0 or 1 from its own rays is
     /// a selection, not an estimate ([`Evaluator::fresh_visibility`]).
@@ -198,7 +225,9 @@ pub enum Inherited {
 impl Link {
     /// The hint this link leaves to the links that refine it.
     pub fn inherited(&self) -> Inherited {
-        if self.wholly_visible() {
+        if self.unobstructed() {
+            Inherited::Unobstructed
+        } else if self.wholly_visible() {
             Inherited::WhollyVisible
         } else if self.partly_visible() || self.spread() > 0.0 {
             Inherited::PartlyVisible
@@ -210,6 +239,10 @@ impl Link {
     /// The link with its visible fraction and spread replaced.
     pub fn with_visibility(&self, visibility: f64, spread: f64) -> Link {
         let f = f64::from(self.form_factor);
+        if self.unobstructed() {
+            // Nothing stands between the two: no reading changes that.
+            return *self;
+        }
         Link::new(
             self.source,
             f,
@@ -250,6 +283,9 @@ impl Evaluator<'_> {
     /// where they read 1); and a link read as dark is dropped for good.
     pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (f64, f64, u64) {
         let (re, se) = (&self.elements[r.index()], &self.elements[s.index()]);
+        if unobstructed(self.scene, re, se, self.bvh) {
+            return (1.0, 0.0, 0);
+        }
         let mut rng = pair_stream(self.seed ^ FRESH_TAG, r.0, s.0);
         let rays = rays.clamp(1, 4 * MAX_QUARTER_RAYS);
         sample_visibility(
@@ -373,9 +409,21 @@ pub fn evaluate_link(
         return (link, 0);
     }
     let rays = rays.min(4 * MAX_QUARTER_RAYS);
+    if inherited == Inherited::Unobstructed || unobstructed(scene, r, s, bvh) {
+        return (Link::unobstructed_link(s_id, f, spread, rays), 0);
+    }
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
     let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, inherited, &mut rng);
     (Link::new(s_id, f, spread, v, v_spread, rays), cast)
+}
+
+/// True when no occluder stands in the shaft between elements `r` and `s`
+/// (their hull, cut by the front of each): every ray between them passes.
+pub(crate) fn unobstructed(scene: &Scene, r: &Element, s: &Element, bvh: &TriangleBvh) -> bool {
+    let n_r = scene.patches[r.patch as usize].normal;
+    let n_s = scene.patches[s.patch as usize].normal;
+    let fronts = [(r.corners[0], n_r), (s.corners[0], n_s)];
+    Shaft::new(r.vertices(), s.vertices(), &fronts).is_some_and(|sh| bvh.shaft_clear(&sh))
 }
 
 /// Centres at least this many times the sum of the two elements' radii

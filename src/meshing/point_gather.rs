@@ -25,7 +25,7 @@ use crate::hierarchical::oracle::receiver_threshold;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
 use crate::util::geometry::outside_polygon;
-use crate::visibility::TriangleBvh;
+use crate::visibility::{Shaft, TriangleBvh};
 
 /// Visibility rays per link not too dim to matter in [`point_radiosity`].
 pub const POINT_RAYS: usize = 8;
@@ -147,8 +147,13 @@ pub fn point_radiosity(
         // Under a box, inside a solid: nothing reaches the point.
         return patch.emission;
     }
-    // The visible fraction of `polygon` (normal `n_s`) from x by `n` rays.
+    // The visible fraction of `polygon` (normal `n_s`) from x: exactly 1
+    // when nothing stands in the shaft between them, else by `n` rays.
     let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
+        let fronts = [(x, patch.normal), (polygon[0], n_s)];
+        if Shaft::new(&[x], polygon, &fronts).is_some_and(|s| bvh.shaft_clear(&s)) {
+            return Some(1.0);
+        }
         let mut rng = pair_stream(seed, leaf.0, stream);
         let sampler = PolygonSampler::new(polygon);
         let targets = stratified(n, &mut rng)
@@ -214,7 +219,9 @@ pub fn point_radiosity(
                 continue;
             }
             let dim = (patch.reflectance * f * b).max_element() < dim_light;
-            let v = if gather.link_rays == LinkRays::Every || !dim {
+            let v = if l.unobstructed() {
+                1.0
+            } else if gather.link_rays == LinkRays::Every || !dim {
                 visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
                     .unwrap_or(l.visibility())
             } else {

@@ -1,9 +1,11 @@
 //! Ray queries against a triangle set: occlusion of point-to-point segments
 //! and closest hits, on an `obvhs` compressed wide BVH.
 //!
-//! Owns: ray queries (obvhs's wide BVH; the other use of obvhs is the
-//! cluster tree's BVH2, [`crate::hierarchical::cluster`]). Geometry is held in f32 (what
-//! obvhs traverses); callers pass f64 points.
+//! Owns: ray queries and shaft queries (`shaft.rs`: whether anything at
+//! all stands between two pieces of surface) on obvhs's wide BVH; the
+//! other use of obvhs is the cluster tree's BVH2,
+//! [`crate::hierarchical::cluster`]. Geometry is held in f32 (what obvhs
+//! traverses); callers pass f64 points.
 //!
 //! Invariants:
 //! - A segment query ignores hits within `endpoint_gap` (a fixed fraction of
@@ -24,6 +26,9 @@ use obvhs::{
 use rayon::prelude::*;
 
 use crate::scene::Scene;
+
+mod shaft;
+pub use shaft::{SHAFT_GAP, Shaft};
 
 /// Hits closer than this fraction of the scene diagonal to a segment's
 /// endpoints do not count as occlusion.
@@ -46,6 +51,8 @@ pub struct TriangleBvh {
     /// Input index of each triangle in `triangles`.
     input_index: Vec<u32>,
     endpoint_gap: f64,
+    /// The scene's length scale the BVH was built for.
+    diagonal: f64,
     /// Coordinates are stored times this power of two (see
     /// [`SCALED_DIAGONAL`]).
     scale: f64,
@@ -102,6 +109,7 @@ impl TriangleBvh {
             triangles: ordered,
             input_index,
             endpoint_gap: ENDPOINT_GAP * diagonal,
+            diagonal,
             scale,
             build_time: start.elapsed(),
         }
