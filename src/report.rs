@@ -153,6 +153,11 @@ pub struct Report {
     /// when none did, and for the classic methods).
     #[serde(default)]
     pub budget: Option<crate::hierarchical::BudgetHit>,
+    /// Hierarchical: the budget that stopped the first linking and how much
+    /// coarser the thresholds it started again with are (`null` when it
+    /// fitted, and for the classic methods).
+    #[serde(default)]
+    pub coarsened: Option<crate::hierarchical::Coarsened>,
     /// Hierarchical with `--importance`: refinement was weighed by the
     /// view's importance (`null` when it was not).
     #[serde(default)]

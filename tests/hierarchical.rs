@@ -354,6 +354,66 @@ fn a_source_behind_the_receivers_sample_points_keeps_its_form_factor() {
     );
 }
 
+/// A slat 6 m long that cuts into a wall, and a 0.5 m patch of that wall
+/// under the slat's middle (the gallery's louvres and light well): only
+/// the wall's 8 cm strip above the joint is in front of the slat's face,
+/// and the light it sends there lands within centimetres of the joint,
+/// between the slat's quarter centroids and out of sight of the wall
+/// patch's own. The link must carry the form factor of that strip, not
+/// the midpoint rules' near-zero (1.5 % of it when the source's points
+/// were tried only for a source of smaller area).
+#[test]
+fn a_slat_that_cuts_into_a_wall_keeps_the_light_of_the_wall_beside_it() {
+    use nusselt::formfactor::form_factor_polygon_polygon_with;
+    use nusselt::hierarchical::hierarchy::Hierarchy;
+    use nusselt::hierarchical::link::{Evaluator, Inherited};
+
+    let p = DVec3::new;
+    let (s, c) = (45f64.to_radians().sin(), 45f64.to_radians().cos());
+    let (joint, width) = (p(0.0, 5.92, 3.4985), 0.27);
+    let up = p(0.0, c, s) * width;
+    let slat = [
+        joint,
+        joint + up,
+        joint + p(6.0, 0.0, 0.0) + up,
+        joint + p(6.0, 0.0, 0.0),
+    ];
+    let wall = [
+        p(3.5, 6.0, 3.5),
+        p(3.0, 6.0, 3.5),
+        p(3.0, 5.5, 3.5),
+        p(3.5, 5.5, 3.5),
+    ];
+    let scene = crate::fixtures::painted(&[(slat, 1, false), (wall, 1, true)], 0.5, 0.0);
+    let n_r = scene.patches[0].normal;
+    assert!(
+        (n_r - p(0.0, c, -s)).length() < 1e-9,
+        "the slat faces up and toward the wall"
+    );
+    let bvh = TriangleBvh::of_scene(&scene);
+    let h = Hierarchy::new(&scene);
+    let (r, w) = (h.root(0), h.root(1));
+    let (re, we) = (h.get(r), h.get(w));
+    let exact =
+        form_factor_polygon_polygon_with(we.vertices(), re.vertices(), 1e-7, 1 << 18, |x| {
+            f64::from(u8::from((x - re.corners[0]).dot(n_r) > 0.0))
+        })
+        .value
+            * we.area
+            / re.area;
+    let evaluator = Evaluator {
+        scene: &scene,
+        elements: &h.elements,
+        bvh: &bvh,
+        seed: 0,
+    };
+    let (link, _) = evaluator.evaluate(r, w, Inherited::Nothing, |_| 32);
+    let f = f64::from(link.form_factor);
+    eprintln!("slat ← wall: F {f:.3e} against {exact:.3e}");
+    assert!(exact > 1e-3, "{exact}");
+    assert!((f - exact).abs() < 0.05 * exact, "F {f} against {exact}");
+}
+
 /// The floor under the Cornell box's blocks is inside closed solids: its
 /// leaves are measured unexposed, the rest of the floor exposed, and what
 /// the floor's links carry (the exposed mean) is brighter than its area

@@ -3,7 +3,9 @@
 //! checks themselves are `limits`.
 //!
 //! Invariant: a refused split keeps its link, a refused opening its
-//! cluster link; [`BudgetHit`] names the first budget that refused.
+//! cluster link; [`BudgetHit`] names the first budget that refused. A
+//! budget that stops the first linking makes it start again coarser
+//! ([`Coarsened`]), so that no solve rests on a half-done first linking.
 
 /// A resource budget of the hierarchical solver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -85,6 +87,30 @@ impl BudgetHit {
              raise {} for a finer solution",
             self.kind.noun(),
             self.kind.option()
+        )
+    }
+}
+
+/// The first linking did not fit a budget at the settings' thresholds and
+/// started again with every threshold `factor` times coarser (also
+/// `coarsened` in `report.json`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Coarsened {
+    /// The budget that stopped the last attempt that did not fit.
+    pub by: Budget,
+    /// How much coarser every threshold is than the settings ask.
+    pub factor: f64,
+}
+
+impl Coarsened {
+    /// One line for the warnings, naming the option to raise.
+    pub fn message(&self) -> String {
+        format!(
+            "hierarchical: the first linking did not fit the {} budget, so every threshold \
+             is {} times coarser than asked; raise {} for the accuracy asked",
+            self.by.noun(),
+            self.factor,
+            self.by.option()
         )
     }
 }

@@ -81,6 +81,9 @@ impl Solver<'_> {
         shared: bool,
     ) -> bool {
         self.measure_exposure();
+        if let Some(c) = &mut self.clusters {
+            c.refresh_weights(self.scene, &self.hierarchy.elements, self.settings.seed);
+        }
         let shares = match shared {
             true => source_shares(self.scene, &self.hierarchy, &self.links),
             false => vec![Vec::new(); self.links.len()],

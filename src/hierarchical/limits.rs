@@ -28,25 +28,27 @@ const ELEMENT_BYTES: u64 = (std::mem::size_of::<crate::hierarchical::hierarchy::
 
 /// Bytes per link in [`memory_estimate`] other than a kept cluster link:
 /// an element link, its oracle decision, and the pair and evaluation it
-/// takes while being settled; or a cluster pair waiting for the oracle
-/// (the pair with spare capacity, the oracle's step), which is less. Not
-/// every link is being settled at once, so this also covers the spare
-/// capacity of the link lists; and a solve's source shares (4 bytes a
-/// link at most, 8 with its index), which live only while no link is
-/// being settled.
-const LINK_BYTES: u64 = (std::mem::size_of::<Link>()
-    + std::mem::size_of::<Decision>()
-    + std::mem::size_of::<Pair>()
-    + std::mem::size_of::<(Link, u64, Decision)>()) as u64;
+/// takes while being settled, or a cluster pair waiting for the oracle
+/// (the pair with spare capacity, the oracle's step), whichever is
+/// larger. Not every link is being settled at once, so this also covers
+/// the spare capacity of the link lists; and a solve's source shares (4
+/// bytes a link at most, 8 with its index), which live only while no link
+/// is being settled.
+const LINK_BYTES: u64 = max(
+    std::mem::size_of::<Link>()
+        + std::mem::size_of::<Decision>()
+        + std::mem::size_of::<Pair>()
+        + std::mem::size_of::<(Link, u64, Decision)>(),
+    2 * std::mem::size_of::<(Node, Node)>() + std::mem::size_of::<(Step, u64)>(),
+) as u64;
+
+const fn max(a: usize, b: usize) -> usize {
+    if a > b { a } else { b }
+}
 
 /// Bytes per kept cluster link in [`memory_estimate`]: the link, doubled
 /// for the spare capacity of its list.
 const CLUSTER_LINK_BYTES: u64 = 2 * std::mem::size_of::<ClusterLink>() as u64;
-
-const _: () = assert!(
-    LINK_BYTES as usize
-        >= 2 * std::mem::size_of::<(Node, Node)>() + std::mem::size_of::<(Step, u64)>()
-);
 
 /// The peak memory of a hierarchical solve with `elements` elements and
 /// `links` links, `cluster_links` of them kept cluster links, in bytes:

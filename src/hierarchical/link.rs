@@ -380,21 +380,34 @@ pub fn evaluate_link(
     if !(f > 0.0) && hi > 0.0 {
         f = exact_form_factor(r, n_r, s, n_s, 0.01 * hi, None).unwrap_or(0.0);
     }
-    // A source smaller than its receiver: the receiver's points may all lie
-    // far from where its light falls (a small lamp next to a wall). By
-    // reciprocity, F_rs = (A_s / A_r) F_sr with F_sr from the source's own
-    // points. When those see half as much again (the receiver's points
-    // missed a peak), the quadrature over the source decides, and the
-    // receiver's F varies at least as much as the two differ.
+    // A source smaller than its receiver, in area or in extent, or only
+    // partly in front of it: the receiver's points may all lie far from
+    // where its light falls (a small lamp next to a wall; a slat 12 m long
+    // that cuts into a wall, whose face next to the wall takes a seventh of
+    // the light of the wall's strip above the joint, between the slat's
+    // quarter centroids and behind the wall's). By reciprocity, F_rs =
+    // (A_s / A_r) F_sr with F_sr from points of the source's part in front
+    // of the receiver. When those see half as much again (the receiver's
+    // points missed a peak), the quadrature over the source decides, and
+    // the receiver's F varies at least as much as the two differ.
     let mut spread = hi - lo;
-    if s.area < r.area {
-        let (ys, ws) = receiver_points(s);
-        let f_sr: f64 = ys
+    let mut front = [DVec3::ZERO; 5];
+    let k = clip_to_half_space(r.corners[0], n_r, s.vertices(), &mut front);
+    let front_area = if k >= 3 {
+        crate::scene::polygon_area_normal(&front[..k]).0
+    } else {
+        0.0
+    };
+    let clipped = front_area < (1.0 - 1e-6) * s.area;
+    if front_area > 0.0 && (s.area < r.area || radius(s) < radius(r) || clipped) {
+        let sampler = PolygonSampler::new(&front[..k]);
+        let f_sr: f64 = [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
+            .map(|(u, v)| sampler.point(glam::DVec2::new(u, v)))
             .iter()
-            .zip(ws)
-            .filter(|(y, _)| (**y - r.corners[0]).dot(n_r) > 0.0)
-            .map(|(y, wk)| wk * form_factor_point_polygon(*y, n_s, r.vertices()))
-            .sum();
+            .filter(|y| (**y - r.corners[0]).dot(n_r) > 0.0)
+            .map(|y| 0.25 * form_factor_point_polygon(*y, n_s, r.vertices()))
+            .sum::<f64>()
+            * (front_area / s.area);
         let f_rec = s.area / r.area * f_sr;
         if f_rec > 1.5 * f {
             let tol = 0.01 * f_rec;
@@ -426,6 +439,16 @@ pub(crate) fn unobstructed(scene: &Scene, r: &Element, s: &Element, bvh: &Triang
     Shaft::new(r.vertices(), s.vertices(), &fronts).is_some_and(|sh| bvh.shaft_clear(&sh))
 }
 
+/// The radius of the smallest sphere about `e`'s centroid that holds it.
+fn radius(e: &Element) -> f64 {
+    let c = e.centroid();
+    e.vertices()
+        .iter()
+        .map(|p| (*p - c).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt()
+}
+
 /// Centres at least this many times the sum of the two elements' radii
 /// apart count as far ([`far_apart`]).
 const FAR_FIELD: f64 = 4.0;
@@ -434,15 +457,8 @@ const FAR_FIELD: f64 = 4.0;
 /// centres at least [`FAR_FIELD`] times the sum of their radii apart, and
 /// each wholly in front of the other's plane (no clipping).
 pub(crate) fn far_apart(r: &Element, n_r: DVec3, s: &Element, n_s: DVec3) -> bool {
-    let radius = |e: &Element, c: DVec3| {
-        e.vertices()
-            .iter()
-            .map(|p| (*p - c).length_squared())
-            .fold(0.0, f64::max)
-            .sqrt()
-    };
     let (c_r, c_s) = (r.centroid(), s.centroid());
-    let (rad_r, rad_s) = (radius(r, c_r), radius(s, c_s));
+    let (rad_r, rad_s) = (radius(r), radius(s));
     (c_s - c_r).length() >= FAR_FIELD * (rad_r + rad_s)
         && (c_r - c_s).dot(n_s) > rad_r
         && (c_s - c_r).dot(n_r) > rad_s
@@ -561,10 +577,10 @@ const SHARPEN_EVALUATIONS: usize = 600;
 /// The unoccluded form factor receiver → source by adaptive quadrature of
 /// the exact inner integral (zero behind the far element's plane), to
 /// `tolerance`, in [0, 1], with `guess` the midpoint rule's value; `None`
-/// when the quadrature fails. The outer integral runs over the smaller of
-/// the two elements (F_rs = (A_s / A_r) F_sr): its points see the larger
-/// one smoothly, where the larger one's points may miss a small source's
-/// light altogether.
+/// when the quadrature fails. The outer integral runs over the element of
+/// smaller extent (F_rs = (A_s / A_r) F_sr): its points see the other one
+/// smoothly, where the other one's points may miss a small source's light
+/// altogether (a long strip beside a small patch).
 pub(crate) fn exact_form_factor(
     receiver: &Element,
     receiver_normal: DVec3,
@@ -573,7 +589,7 @@ pub(crate) fn exact_form_factor(
     tolerance: f64,
     guess: Option<f64>,
 ) -> Option<f64> {
-    let (near, far, far_normal, scale) = if source.area < receiver.area {
+    let (near, far, far_normal, scale) = if radius(source) < radius(receiver) {
         (
             source,
             receiver,

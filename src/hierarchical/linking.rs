@@ -16,12 +16,30 @@ use crate::hierarchical::solver::{Pair, Solver};
 impl Solver<'_> {
     /// The first links: from the root cluster's self-link when clustering,
     /// else between every pair of patches that face each other; then
-    /// settled.
+    /// settled. When a link, element or memory budget stops this, it
+    /// starts again with coarser thresholds ([`Solver::coarsen`]), a few
+    /// times at most.
     pub(super) fn initial_links(&mut self) -> u64 {
-        if let Some(root) = self.clusters.as_ref().and_then(|c| c.tree.root) {
-            let pairs = self.link_clusters(vec![(root, root)]);
-            return self.settle(pairs);
+        loop {
+            let pairs = match self.clusters.as_ref().and_then(|c| c.tree.root) {
+                Some(root) => self.link_clusters(vec![(root, root)]),
+                None => self.patch_pairs(),
+            };
+            // (A stopped cluster linking is not worth settling.)
+            let splits = match self.may_coarsen() {
+                false => self.settle(pairs),
+                true => 0,
+            };
+            if !self.may_coarsen() {
+                self.first_linking = false;
+                return splits;
+            }
+            self.coarsen();
         }
+    }
+
+    /// Every pair of patches that face each other, counted as links.
+    fn patch_pairs(&mut self) -> Vec<Pair> {
         let scene = self.scene;
         let tol = 1e-9 * scene.diagonal();
         let n = scene.patches.len();
@@ -48,7 +66,7 @@ impl Solver<'_> {
             })
             .collect();
         self.n_links += pairs.len() as u64;
-        self.settle(pairs)
+        pairs
     }
 
     /// Runs the cluster oracle on (receiver, source) node pairs, opening
@@ -68,6 +86,10 @@ impl Solver<'_> {
         let eps = self.thresholds.cluster_eps;
         self.n_links += pending.len() as u64;
         while !pending.is_empty() {
+            if self.may_coarsen() {
+                // Stopped by a budget: it starts again coarser.
+                break;
+            }
             let evaluator = self.evaluator();
             let steps: Vec<(Step, u64)> = pending
                 .par_iter()
@@ -123,7 +145,9 @@ impl Solver<'_> {
                             continue;
                         }
                         if separated {
-                            let (evaluation, rays) = clusters.evaluate(scene, bvh, r, s, seed);
+                            let elements = &self.hierarchy.elements;
+                            let (evaluation, rays) =
+                                clusters.evaluate(scene, elements, bvh, r, s, seed, false);
                             self.rays += rays;
                             match evaluation {
                                 Evaluation::Link(link) => Some(link),

@@ -55,7 +55,7 @@ pub mod settings;
 pub mod solution;
 mod solver;
 
-pub use budget::{Budget, BudgetHit};
+pub use budget::{Budget, BudgetHit, Coarsened};
 pub use limits::memory_estimate;
 pub use settings::{Accuracy, Clustering, DEFAULT_MEMORY_BUDGET, HierarchicalSettings, Preset};
 pub use solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};

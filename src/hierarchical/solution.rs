@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 
-use crate::hierarchical::budget::BudgetHit;
+use crate::hierarchical::budget::{BudgetHit, Coarsened};
 use crate::hierarchical::cluster::Clusters;
 use crate::hierarchical::hierarchy::Hierarchy;
 use crate::hierarchical::link::Link;
@@ -87,6 +87,9 @@ pub struct HierarchicalSolution {
     pub times: HierarchicalTimes,
     /// The thresholds used, in scene units.
     pub thresholds: Thresholds,
+    /// When a budget stopped the first linking: how much coarser the
+    /// thresholds it started again with are (`None`: the settings' own).
+    pub coarsened: Option<Coarsened>,
     /// The clusters and their links, when the solve clustered.
     pub clusters: Option<Clusters>,
     /// Per patch, the irradiance the cluster links deliver (constant over

@@ -12,7 +12,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::discontinuity::Segment;
-use crate::hierarchical::budget::Budget;
+use crate::hierarchical::budget::{Budget, Coarsened};
 use crate::hierarchical::cluster::Clusters;
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::{Evaluator, Inherited, Link};
@@ -78,7 +78,22 @@ pub(super) struct Solver<'a> {
     pub(super) start: Instant,
     /// Per patch, the weight in [0, 1] of its links' errors (empty: 1).
     pub(super) weight: Vec<f64>,
+    /// Times the first linking started again with thresholds
+    /// [`COARSENING`] times coarser, and the budget that stopped it last.
+    pub(super) coarsened: u32,
+    pub(super) coarsened_by: Option<Budget>,
+    /// True until the first linking is done: only it starts again coarser.
+    pub(super) first_linking: bool,
 }
+
+/// How much coarser every threshold gets when a budget stops the first
+/// linking ([`Solver::coarsen`]).
+pub(super) const COARSENING: f64 = 4.0;
+
+/// Restarts of the first linking at most: thresholds up to 4⁵ = 1024
+/// times coarser. (Touching clusters always open down to their patches,
+/// so beyond some point coarser thresholds no longer shrink the links.)
+pub(super) const MAX_COARSENING: u32 = 5;
 
 /// ρ of `patch` times its importance weight (`weight` empty: ρ).
 pub(super) fn weighted_rho(scene: &Scene, weight: &[f64], patch: u32) -> DVec3 {
@@ -205,19 +220,68 @@ impl<'a> Solver<'a> {
             clusters: None,
             start,
             weight: Vec::new(),
+            coarsened: 0,
+            coarsened_by: None,
+            first_linking: true,
         };
-        if settings.clustering.applies(scene.patches.len()) {
-            solver.clusters = Some(Clusters::new(scene));
-        }
         if let Some(seen) = &settings.importance {
             solver.weight = (0..scene.patches.len())
                 .map(|p| seen.get(p).map_or(0.0, |&v| f64::from(v).clamp(0.0, 1.0)))
                 .collect();
-            if let Some(c) = &mut solver.clusters {
-                c.set_weights(&solver.weight);
-            }
         }
+        solver.clear_links();
         solver
+    }
+
+    /// Back to one root element per patch and no links: the hierarchy,
+    /// the links, the cluster tree (when the scene is clustered, with the
+    /// importance weights) and the counts and budget that go with them.
+    fn clear_links(&mut self) {
+        let scene = self.scene;
+        self.hierarchy = Hierarchy::new(scene);
+        self.links = vec![Vec::new(); scene.patches.len()];
+        self.n_links = 0;
+        self.n_cluster_links = 0;
+        self.budget = None;
+        self.resampled = 0;
+        self.measured = 0;
+        self.clusters = None;
+        if self.settings.clustering.applies(scene.patches.len()) {
+            let mut c = Clusters::new(scene);
+            if !self.weight.is_empty() {
+                c.set_weights(&self.weight);
+            }
+            self.clusters = Some(c);
+        }
+    }
+
+    /// True when a link, element or memory budget stopped the links so far
+    /// and the first linking may still start again coarser.
+    pub(super) fn may_coarsen(&self) -> bool {
+        use crate::hierarchical::budget::Budget;
+        self.first_linking
+            && self.coarsened < MAX_COARSENING
+            && matches!(
+                self.budget,
+                Some(Budget::Links | Budget::Elements | Budget::Memory)
+            )
+    }
+
+    /// Drops every link and element, and makes every threshold
+    /// [`COARSENING`] times coarser, for the first linking to start again.
+    /// A budget that stops the first linking leaves it half done (pairs of
+    /// touching clusters unopened lose their light, coarse cluster links
+    /// kept in their place carry light their sources' hidden members
+    /// send): a solve at coarser thresholds that fits is the better answer.
+    pub(super) fn coarsen(&mut self) {
+        self.coarsened += 1;
+        self.coarsened_by = self.budget;
+        let t = &mut self.thresholds;
+        t.ff_eps *= COARSENING;
+        t.bf_eps *= COARSENING;
+        t.power_eps *= COARSENING;
+        t.cluster_eps *= COARSENING;
+        self.clear_links();
     }
 
     /// The rounds ("multigridding", \[HSA91\] §5): solve with the current
@@ -313,7 +377,7 @@ impl<'a> Solver<'a> {
         let budget = self.budget_hit();
         let (cluster_irradiance, cluster_direct) = self.clusters.as_ref().map_or_else(
             || (Vec::new(), Vec::new()),
-            |c| c.patch_irradiance(self.scene, &self.hierarchy.elements),
+            |c| c.patch_irradiance(self.scene, &self.hierarchy.elements, self.settings.seed),
         );
         HierarchicalSolution {
             importance: self.weight,
@@ -330,6 +394,10 @@ impl<'a> Solver<'a> {
             visibility_rays: self.rays,
             times,
             thresholds: self.thresholds,
+            coarsened: self.coarsened_by.map(|by| Coarsened {
+                by,
+                factor: COARSENING.powi(self.coarsened as i32),
+            }),
             hierarchy: self.hierarchy,
         }
     }

@@ -133,6 +133,10 @@ fn report_solution(
         report.warnings.push(hit.message());
     }
     report.budget = solution.budget;
+    if let Some(c) = &solution.coarsened {
+        report.warnings.push(c.message());
+    }
+    report.coarsened = solution.coarsened;
     if solution.rounds_exhausted {
         report.warnings.push(format!(
             "hierarchical: refinement stopped after {} rounds with links still above the threshold",

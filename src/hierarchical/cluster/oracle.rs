@@ -161,7 +161,7 @@ impl Clusters {
                 (Sampled::Nothing, rays) => (Step::Drop, rays),
                 (Sampled::Seen, rays) => (open, rays),
                 (Sampled::Blocked, rays) => {
-                    let (again, more) = self.evaluate(scene, bvh, r, s, !seed);
+                    let (again, more) = self.evaluate(scene, elements, bvh, r, s, seed, true);
                     match again {
                         Evaluation::Link(l) => (Step::Accept(l), rays + more),
                         Evaluation::Unrepresentable => (open, rays + more),
@@ -170,7 +170,7 @@ impl Clusters {
                 }
             };
         }
-        let (evaluation, rays) = self.evaluate(scene, bvh, r, s, seed);
+        let (evaluation, rays) = self.evaluate(scene, elements, bvh, r, s, seed, false);
         match evaluation {
             Evaluation::Nothing => (Step::Drop, rays),
             Evaluation::Unrepresentable => (open, rays),
@@ -185,7 +185,7 @@ impl Clusters {
             Evaluation::Link(_) => {
                 // The kept value comes from fresh rays: the ones that
                 // decided would favour links whose sample saw no shadow.
-                let (again, more) = self.evaluate(scene, bvh, r, s, !seed);
+                let (again, more) = self.evaluate(scene, elements, bvh, r, s, seed, true);
                 match again {
                     Evaluation::Link(l) => (Step::Accept(l), rays + more),
                     _ => (Step::Drop, rays + more),

@@ -61,31 +61,27 @@ impl Clusters {
     }
 
     /// Adds the irradiance the cluster links deliver to each patch to
-    /// `gathered[patch]`, with the sources' radiance `radiance` (clusters)
-    /// and `patch(p)` (patches: exposed radiosity, exposed fraction). A
-    /// link delivers its transfer times the source's mean exposed
-    /// radiosity toward the receiver; a patch takes it over its area; a
+    /// `gathered[patch]`: a link (into receiver r, along unit direction d
+    /// from r to its source) delivers its transfer times `carried(r, link,
+    /// d)`, the radiosity it carries; a patch takes that over its area; a
     /// cluster shares it by lobes, per unit of exposed projected area, and
     /// pushes that down the tree, each patch taking its share by its own
-    /// normal and exposure.
+    /// normal and exposure `exposure(p)`.
     pub fn gather_with(
         &self,
         scene: &Scene,
-        radiance: &Radiance,
-        patch: impl Fn(usize) -> (DVec3, f64) + Sync,
+        exposure: impl Fn(usize) -> f64 + Sync,
+        carried: impl Fn(Node, &ClusterLink, DVec3) -> DVec3 + Sync,
         gathered: &mut [DVec3],
     ) {
         let t = &self.tree;
+        let radiance = &self.radiance;
         // (direction, power) of each link gathered by `r`.
         let incoming = |r: Node, ls: &[ClusterLink]| -> Vec<(DVec3, DVec3)> {
             ls.iter()
                 .map(|l| {
                     let d = (t.centre(l.source()) - t.centre(r)).normalize_or_zero();
-                    let b = match l.source() {
-                        Node::Patch(p) => patch(p as usize).0,
-                        Node::Cluster(c) => radiance.toward(c as usize, -d),
-                    };
-                    (d, b * f64::from(l.transfer))
+                    (d, carried(r, l, d) * f64::from(l.transfer))
                 })
                 .collect()
         };
@@ -119,8 +115,8 @@ impl Clusters {
                     }
                     Node::Patch(p) => {
                         let n = scene.patches[p as usize].normal;
-                        let exposure = patch(p as usize).1;
-                        gathered[p as usize] += dot3(&here, &normal_lobes(n)) * exposure;
+                        gathered[p as usize] +=
+                            dot3(&here, &normal_lobes(n)) * exposure(p as usize);
                     }
                 }
             }
@@ -143,25 +139,56 @@ impl Clusters {
         }
     }
 
-    /// [`Clusters::gather_with`] with the patch roots' radiosities.
+    /// [`Clusters::gather_with`] in the solve: a patch source carries its
+    /// exposed radiosity, a cluster source its radiance toward the
+    /// receiver times the link's source weight
+    /// ([`Clusters::refresh_weights`]).
     pub fn gather(&self, scene: &Scene, elements: &[Element], gathered: &mut [DVec3]) {
-        self.gather_with(scene, &self.radiance, |p| exposed(&elements[p]), gathered);
+        let carried = |_: Node, l: &ClusterLink, d: DVec3| match l.source() {
+            Node::Patch(p) => exposed(&elements[p as usize]).0,
+            Node::Cluster(c) => self.radiance.toward(c as usize, -d) * l.weight(),
+        };
+        self.gather_with(scene, |p| exposed(&elements[p]).1, carried, gathered);
     }
 
     /// Irradiance per patch from the cluster links: all of it, and the part
-    /// that comes from the sources' emission.
+    /// that comes from the sources' emission. Each link carries what its
+    /// own rays reached, from the patches' radiosities as they are now
+    /// ([`Clusters::sampled_radiosity`]; its source's mean when its pairs
+    /// are not known).
     pub fn patch_irradiance(
         &self,
         scene: &Scene,
         elements: &[Element],
+        seed: u64,
     ) -> (Vec<DVec3>, Vec<DVec3>) {
         let n = scene.patches.len();
+        let emitted = self.pull(scene, |p| {
+            (scene.patches[p].emission, exposed(&elements[p]).1)
+        });
+        let carried = |emission: bool| {
+            let (radiance, emitted) = (&self.radiance, &emitted);
+            move |r: Node, l: &ClusterLink, d: DVec3| {
+                let b = |p: u32| match emission {
+                    true => scene.patches[p as usize].emission,
+                    false => exposed(&elements[p as usize]).0,
+                };
+                match l.source() {
+                    Node::Patch(p) => b(p),
+                    Node::Cluster(c) => self
+                        .sampled_radiosity(scene, r, l, seed, b)
+                        .unwrap_or_else(|| {
+                            let mean = if emission { emitted } else { radiance };
+                            mean.toward(c as usize, -d)
+                        }),
+                }
+            }
+        };
+        let exposure = |p: usize| exposed(&elements[p]).1;
         let mut total = vec![DVec3::ZERO; n];
-        self.gather(scene, elements, &mut total);
-        let emitted = |p: usize| (scene.patches[p].emission, exposed(&elements[p]).1);
-        let radiance = self.pull(scene, emitted);
+        self.gather_with(scene, exposure, carried(false), &mut total);
         let mut direct = vec![DVec3::ZERO; n];
-        self.gather_with(scene, &radiance, emitted, &mut direct);
+        self.gather_with(scene, exposure, carried(true), &mut direct);
         (total, direct)
     }
 

@@ -263,9 +263,9 @@ impl ClusterTree {
         self.clusters.is_empty()
     }
 
-    /// A point of node `n` and the normal there, from a point `u` of the
-    /// unit square: the patch by area, then a point in it.
-    pub(super) fn sample(&self, scene: &Scene, n: Node, u: DVec2) -> (DVec3, DVec3) {
+    /// A point of node `n`, its patch and the normal there, from a point
+    /// `u` of the unit square: the patch by area, then a point in it.
+    pub(super) fn sample(&self, scene: &Scene, n: Node, u: DVec2) -> (u32, DVec3, DVec3) {
         let (p, u) = match n {
             Node::Patch(p) => (p, u),
             Node::Cluster(c) => {
@@ -285,7 +285,7 @@ impl ClusterTree {
             }
         };
         let patch = &scene.patches[p as usize];
-        (point_in_polygon(patch.vertices(), u), patch.normal)
+        (p, point_in_polygon(patch.vertices(), u), patch.normal)
     }
 
     /// Checks the invariants of the module doc against `scene`; the first
