@@ -59,6 +59,13 @@ pub fn sharpen(scene: &Scene, t: &Thresholds, link: &mut Link, ends: &Ends) {
     }
 }
 
+/// Receivers reflecting less than this count as reflecting this much in
+/// the oracles: the light a dark surface absorbs still has to add up. (A
+/// black lamp 0.3 m from the lit panel it faces had its link never split,
+/// whatever it absorbed: the panel's mean radiosity, a quarter below what
+/// its bright middle sends the lamp, lost 14 % of the scene's light.)
+pub const RHO_FLOOR: f64 = 0.05;
+
 /// A link's two ends as the oracle sees them: the receiver, its
 /// reflectance weighted by its importance, the source, and the source's
 /// state. Every decision about a link takes one.

@@ -16,7 +16,7 @@ use crate::hierarchical::budget::{Budget, Coarsened};
 use crate::hierarchical::cluster::Clusters;
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::{Evaluator, Inherited, Link};
-use crate::hierarchical::oracle::{Ends, Thresholds};
+use crate::hierarchical::oracle::{Ends, RHO_FLOOR, Thresholds};
 use crate::hierarchical::settings::HierarchicalSettings;
 use crate::hierarchical::solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};
 use crate::scene::Scene;
@@ -95,9 +95,12 @@ pub(super) const COARSENING: f64 = 4.0;
 /// so beyond some point coarser thresholds no longer shrink the links.)
 pub(super) const MAX_COARSENING: u32 = 5;
 
-/// ρ of `patch` times its importance weight (`weight` empty: ρ).
+/// ρ of `patch`, at least [`RHO_FLOOR`] per channel, times its importance
+/// weight (`weight` empty: 1).
 pub(super) fn weighted_rho(scene: &Scene, weight: &[f64], patch: u32) -> DVec3 {
-    let rho = scene.patches[patch as usize].reflectance;
+    let rho = scene.patches[patch as usize]
+        .reflectance
+        .max(DVec3::splat(RHO_FLOOR));
     weight.get(patch as usize).map_or(rho, |w| rho * *w)
 }
 

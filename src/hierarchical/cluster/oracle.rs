@@ -17,11 +17,8 @@ use super::transport::exposed;
 use super::{Clusters, Node};
 use crate::hierarchical::hierarchy::Element;
 use crate::hierarchical::link::Evaluator;
+use crate::hierarchical::oracle::RHO_FLOOR;
 use crate::scene::Scene;
-
-/// Receivers reflecting less than this count as reflecting this much in
-/// the oracle: what a black surface absorbs is still reported.
-pub(super) const RHO_FLOOR: f64 = 0.05;
 
 /// What the oracle decided for a (receiver, source) pair.
 #[derive(Clone, Copy, Debug, PartialEq)]
