@@ -20,7 +20,11 @@
 //! reflects H / exposure, so light landing on a partly buried leaf is sent
 //! on, not lost.
 //!
-//! In the final solve, a link to a split source weighs the source's
+//! A link whose rays found its source partly hidden weighs the source's
+//! children by where those that got through landed
+//! ([`Link::seen_shares`]), in every solve: through the gaps between
+//! slats a wall sees a slat's lower edge, not its mean. In the final
+//! solve, any other link to a split source weighs the source's
 //! children as its receiver sees them ([`source_shares`]), not by area:
 //! the mean would move light from receivers beside a source's bright part
 //! to those beside its dark part, and the light received would no longer
@@ -119,7 +123,8 @@ impl Solver<'_> {
     }
 
     /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers,
-    /// B_source weighted over a split source's children by `shares`
+    /// B_source weighted over a split source's children by the shares the
+    /// link's rays saw ([`Link::seen_shares`]), else by `shares`
     /// ([`source_shares`]).
     pub(super) fn gather(&self, shares: &[Vec<(u32, Shares)>]) -> Vec<DVec3> {
         let h = &self.hierarchy;
@@ -130,10 +135,17 @@ impl Solver<'_> {
             .map(|(ls, sh)| {
                 let mean: DVec3 = ls
                     .iter()
-                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
+                    .map(|l| {
+                        let b = match l.seen_shares() {
+                            Some(w) => seen_radiosity(h, l.source, w),
+                            None => h.get(l.source).exposed_radiosity,
+                        };
+                        l.coupling() * b
+                    })
                     .sum();
                 let seen: DVec3 = sh
                     .iter()
+                    .filter(|(i, _)| ls[*i as usize].seen_shares().is_none())
                     .map(|&(i, w)| {
                         let l = &ls[i as usize];
                         let s = h.get(l.source);

@@ -45,9 +45,17 @@ use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_c
 use crate::hierarchical::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
 use crate::scene::{Scene, polygon_centroid};
+use crate::util::geometry::outside_polygon;
 use crate::visibility::{Shaft, TriangleBvh};
 
-/// One interaction, kept in its receiver's list (16 bytes).
+/// One interaction, kept in its receiver's list (20 bytes).
+///
+/// It holds two readings of its visible fraction: the one the oracle
+/// decided on, which every later decision uses too, and the one it
+/// carries light with, from independent rays when the decision hung on
+/// the first. A decision that kept the reading it was made on would
+/// select on that reading's noise: links read dark are kept, those read
+/// bright are split and read again, so light is lost (§ refine).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Link {
     /// The element gathered from.
@@ -56,8 +64,17 @@ pub struct Link {
     pub form_factor: f32,
     /// Form-factor error estimate F_err (spread of the point values).
     pub error: f32,
-    /// Visible fraction in [0, 1], fixed point (0 and 1 exact).
+    /// Visible fraction in [0, 1] the oracle decides on, fixed point (0
+    /// and 1 exact).
     visibility: u16,
+    /// Visible fraction in [0, 1] the link carries light with, fixed
+    /// point.
+    carried: u16,
+    /// How the rays of the carried reading that got through spread over
+    /// the source's four quarters (its children, or the children a split
+    /// will give it): four nibbles, each quarter's kernel-weighted share in
+    /// 15ths of the largest; 0 when not recorded (see [`Link::seen_shares`]).
+    seen: u16,
     /// Spread of the visible fraction over the receiver's four quarters
     /// (max − min), fixed point rounded up: how much a shadow edge crossing
     /// the receiver varies this link's light over it.
@@ -74,6 +91,34 @@ const UNOBSTRUCTED: u8 = 0x80;
 
 fn to_fixed(x: f64) -> u16 {
     (x.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16
+}
+
+/// Per-quarter weights as four nibbles in 15ths of the largest (0: none).
+fn pack_shares(w: Option<[f64; 4]>) -> u16 {
+    let Some(w) = w else {
+        return 0;
+    };
+    let top = w.iter().copied().fold(0.0, f64::max);
+    if !(top > 0.0) || !top.is_finite() {
+        return 0;
+    }
+    w.iter().enumerate().fold(0u16, |acc, (k, x)| {
+        acc | (((15.0 * x / top).round().clamp(0.0, 15.0) as u16) << (4 * k))
+    })
+}
+
+/// One reading of a pair's visibility: the kernel-weighted visible
+/// fraction, its spread over the receiver's quarters, and, for a partial
+/// reading of the full count of rays, how the rays that got through spread
+/// over the source's quarters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// Visible fraction in [0, 1].
+    pub visibility: f64,
+    /// Its spread over the receiver's quarters.
+    pub spread: f64,
+    /// Kernel weight of the rays that got through, per source quarter.
+    pub seen: Option<[f64; 4]>,
 }
 
 /// Most rays per receiver quarter a link records ([`Link::rays`]).
@@ -96,6 +141,8 @@ impl Link {
             form_factor: form_factor.clamp(0.0, 1.0) as f32,
             error: error.max(0.0) as f32,
             visibility: to_fixed(visibility),
+            carried: to_fixed(visibility),
+            seen: 0,
             spread: (spread.clamp(0.0, 1.0) * f64::from(u8::MAX)).ceil() as u8,
             quarter_rays: rays.div_ceil(4).min(MAX_QUARTER_RAYS) as u8,
         }
@@ -116,9 +163,15 @@ impl Link {
         self.quarter_rays & UNOBSTRUCTED != 0
     }
 
-    /// Visible fraction V in [0, 1].
+    /// Visible fraction V in [0, 1] that the oracle decides on.
     pub fn visibility(&self) -> f64 {
         f64::from(self.visibility) / f64::from(u16::MAX)
+    }
+
+    /// Visible fraction in [0, 1] that the link carries light with (the
+    /// decision's reading unless fresh rays replaced it).
+    pub fn carried_visibility(&self) -> f64 {
+        f64::from(self.carried) / f64::from(u16::MAX)
     }
 
     /// Spread of V over the receiver's quarters, in [0, 1].
@@ -141,9 +194,9 @@ impl Link {
         self.visibility == u16::MAX && self.spread == 0
     }
 
-    /// The coupling F·V the gather uses.
+    /// The coupling F·V the gather uses (V the carried reading).
     pub fn coupling(&self) -> f64 {
-        self.form_factor as f64 * self.visibility()
+        self.form_factor as f64 * self.carried_visibility()
     }
 }
 
@@ -236,22 +289,39 @@ impl Link {
         }
     }
 
-    /// The link with its visible fraction and spread replaced.
-    pub fn with_visibility(&self, visibility: f64, spread: f64) -> Link {
-        let f = f64::from(self.form_factor);
+    /// The link carrying light with `reading` (fresh rays'), its
+    /// decision's reading unchanged.
+    pub fn carrying(&self, reading: &Reading) -> Link {
         if self.unobstructed() {
             // Nothing stands between the two: no reading changes that.
             return *self;
         }
-        Link::new(
-            self.source,
-            f,
-            f64::from(self.error),
-            visibility,
-            spread,
-            self.rays(),
-        )
+        Link {
+            carried: to_fixed(reading.visibility),
+            seen: pack_shares(reading.seen),
+            ..*self
+        }
     }
+
+    /// The source's quarters as the carried reading's rays that got
+    /// through saw them (kernel-weighted, in 255ths of the largest), when
+    /// they were recorded: only for a partial reading of the full count of
+    /// rays. A link whose source is split hands its receiver its children's
+    /// radiosities by these shares, not their mean: through the gaps
+    /// between slats a wall sees a slat's dim lower edge, not its lit
+    /// middle.
+    pub fn seen_shares(&self) -> Option<[u8; 4]> {
+        (self.seen != 0).then(|| [0, 1, 2, 3].map(|k| ((self.seen >> (4 * k)) & 15) as u8 * 17))
+    }
+}
+
+impl Reading {
+    /// A whole view, known without rays.
+    pub const CLEAR: Reading = Reading {
+        visibility: 1.0,
+        spread: 0.0,
+        seen: None,
+    };
 }
 
 /// Mixed into the seed of [`Evaluator::fresh_visibility`]'s rays, so that
@@ -281,10 +351,10 @@ impl Evaluator<'_> {
     /// refines the others, so the deciding reading, kept, loses the light
     /// of every partly hidden source that happened to read 0 (and gains
     /// where they read 1); and a link read as dark is dropped for good.
-    pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (f64, f64, u64) {
+    pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (Reading, u64) {
         let (re, se) = (&self.elements[r.index()], &self.elements[s.index()]);
         if unobstructed(self.scene, re, se, self.bvh) {
-            return (1.0, 0.0, 0);
+            return (Reading::CLEAR, 0);
         }
         let mut rng = pair_stream(self.seed ^ FRESH_TAG, r.0, s.0);
         let rays = rays.clamp(1, 4 * MAX_QUARTER_RAYS);
@@ -426,8 +496,9 @@ pub fn evaluate_link(
         return (Link::unobstructed_link(s_id, f, spread, rays), 0);
     }
     let mut rng = pair_stream(seed, r_id.0, s_id.0);
-    let (v, v_spread, cast) = sample_visibility(scene, r, s, bvh, rays, inherited, &mut rng);
-    (Link::new(s_id, f, spread, v, v_spread, rays), cast)
+    let (reading, cast) = sample_visibility(scene, r, s, bvh, rays, inherited, &mut rng);
+    let link = Link::new(s_id, f, spread, reading.visibility, reading.spread, rays);
+    (link.carrying(&reading), cast)
 }
 
 /// True when no occluder stands in the shaft between elements `r` and `s`
@@ -481,7 +552,7 @@ fn sample_visibility(
     rays: usize,
     inherited: Inherited,
     rng: &mut impl rand::Rng,
-) -> (f64, f64, u64) {
+) -> (Reading, u64) {
     let n_r = scene.patches[r.patch as usize].normal;
     let n_s = scene.patches[s.patch as usize].normal;
     let per_quarter = rays.max(1).div_ceil(4);
@@ -504,15 +575,44 @@ fn sample_visibility(
         });
         probed = 4;
         if clear {
-            return (1.0, 0.0, probed);
+            return (Reading::CLEAR, probed);
         }
     }
-    // Per quarter, the kernel-weighted visibility sums: V (their ratio
-    // over all quarters) is what scales the unoccluded form factor.
+    // The source quarter each target lies in (the children a split gives
+    // it), for the shares of the rays that get through.
+    let kids = split_corners(s.shape, &s.corners);
+    let m = s.vertices().len();
+    let quarter_of: Vec<usize> = targets
+        .iter()
+        .map(|y| {
+            (0..4)
+                .min_by(|&a, &b| {
+                    let out = |k: usize| outside_polygon(&kids[k][..m], n_s, *y);
+                    out(a).total_cmp(&out(b))
+                })
+                .unwrap_or(0)
+        })
+        .collect();
+    // Per receiver quarter, the kernel-weighted visibility sums: V (their
+    // ratio over all quarters) is what scales the unoccluded form factor.
+    let mut through = [0.0; 4];
     let sums = quarters.map(|quarter| {
         let sampler = PolygonSampler::new(&quarter[..n]);
-        let from = from.iter().map(|a| sampler.point(*a));
-        weighted_visibility(bvh, from.zip(targets.iter().copied()), n_r, n_s)
+        let (mut total, mut seen) = (0.0, 0.0);
+        for (a, (y, &q)) in from.iter().zip(targets.iter().zip(&quarter_of)) {
+            let x = sampler.point(*a);
+            let d = *y - x;
+            let kernel = d.dot(n_r) * -d.dot(n_s) / d.length_squared().powi(2);
+            if !(kernel > 0.0) || !kernel.is_finite() {
+                continue;
+            }
+            total += kernel;
+            if bvh.visible(x, *y) {
+                seen += kernel;
+                through[q] += kernel;
+            }
+        }
+        (total, seen)
     });
     let (weight, seen) = (sums.map(|q| q.0), sums.map(|q| q.1));
     let counted: f64 = weight.iter().sum();
@@ -520,7 +620,12 @@ fn sample_visibility(
         // Every ray joined points that do not face each other: the pair
         // faces only in part. Its visibility comes from the parts that do.
         let (v, cast) = facing_visibility(r, n_r, s, n_s, bvh, total, rng);
-        return (v, 0.0, probed + total as u64 + cast);
+        let reading = Reading {
+            visibility: v,
+            spread: 0.0,
+            seen: None,
+        };
+        return (reading, probed + total as u64 + cast);
     }
     let v = seen.iter().sum::<f64>() / counted;
     let (min, max) = (0..4)
@@ -528,7 +633,16 @@ fn sample_visibility(
         .map(|k| seen[k] / weight[k])
         .fold((1.0f64, 0.0f64), |(lo, hi), q| (lo.min(q), hi.max(q)));
     let spread = (max - min).max(0.0);
-    (v, spread, probed + total as u64)
+    // Shares only from a partial reading of more than a few rays: a whole
+    // one sees the quarters as the form factor does, and four rays, one
+    // per receiver quarter, say little about the source's.
+    let partial = v > 0.0 && v < 1.0 && per_quarter > 1;
+    let reading = Reading {
+        visibility: v,
+        spread,
+        seen: partial.then_some(through),
+    };
+    (reading, probed + total as u64)
 }
 
 /// The kernel-weighted visible fraction of `s` from `r` by `rays` rays

@@ -367,8 +367,8 @@ mod tests {
     use crate::hierarchical::hierarchy::ElementId;
 
     #[test]
-    fn link_is_sixteen_bytes() {
-        assert_eq!(std::mem::size_of::<Link>(), 16);
+    fn link_is_twenty_bytes() {
+        assert_eq!(std::mem::size_of::<Link>(), 20);
     }
 
     #[test]

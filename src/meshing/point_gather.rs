@@ -223,9 +223,9 @@ pub fn point_radiosity(
                 1.0
             } else if gather.link_rays == LinkRays::Every || !dim {
                 visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
-                    .unwrap_or(l.visibility())
+                    .unwrap_or(l.carried_visibility())
             } else {
-                l.visibility()
+                l.carried_visibility()
             };
             irradiance += f * v * b;
         }
