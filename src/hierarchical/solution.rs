@@ -10,6 +10,7 @@ use glam::DVec3;
 
 use crate::hierarchical::budget::{BudgetHit, Coarsened};
 use crate::hierarchical::cluster::Clusters;
+use crate::hierarchical::gather::seen_radiosity;
 use crate::hierarchical::hierarchy::Hierarchy;
 use crate::hierarchical::link::Link;
 use crate::hierarchical::oracle::Thresholds;
@@ -132,7 +133,10 @@ impl HierarchicalSolution {
 
     /// Irradiance per element from the element links whose source lies on
     /// a patch accepted by `from_patch`, own links plus those of every
-    /// ancestor (cluster links, which mix patches, are not counted).
+    /// ancestor, each link's source weighed as the solve weighs it over
+    /// its children when its rays saw them partly hidden
+    /// ([`Link::seen_shares`]; cluster links, which mix patches, are not
+    /// counted).
     pub fn irradiance_from(&self, from_patch: impl Fn(u32) -> bool) -> Vec<DVec3> {
         let h = &self.hierarchy;
         let own: Vec<DVec3> = self
@@ -141,7 +145,13 @@ impl HierarchicalSolution {
             .map(|ls| {
                 ls.iter()
                     .filter(|l| from_patch(h.get(l.source).patch))
-                    .map(|l| l.coupling() * h.get(l.source).exposed_radiosity)
+                    .map(|l| {
+                        let b = match l.seen_shares() {
+                            Some(w) => seen_radiosity(h, l.source, w),
+                            None => h.get(l.source).exposed_radiosity,
+                        };
+                        l.coupling() * b
+                    })
                     .sum()
             })
             .collect();
