@@ -309,8 +309,10 @@ fn baffle() -> (Scene, [DVec3; 4]) {
 /// links against cosine rays cast from the floor that take the radiosity
 /// of the slat leaf they hit. The floor sees the slats through the gaps
 /// between them, at their lower edges, which are darker than a slat's
-/// mean. Measured: 0.972; 1.047 when a partly hidden source handed every
-/// receiver its mean.
+/// mean. Measured with the absolute threshold: 0.972; 1.047 when a partly
+/// hidden source handed every receiver its mean. (With the preset's
+/// relative threshold, 0.954 and 0.978: the shares' noise, eight source
+/// points over four quarters, costs more on its finer links; issue 21.)
 #[test]
 fn light_reflected_through_gaps_is_that_of_the_parts_in_sight() {
     use nusselt::sampling::{PolygonSampler, stream};
@@ -318,7 +320,11 @@ fn light_reflected_through_gaps_is_that_of_the_parts_in_sight() {
     use rand::Rng;
     let (scene, floor) = baffle();
     let bvh = TriangleBvh::of_scene(&scene);
-    let s = solve(&scene, &bvh, Accuracy::default());
+    let accuracy = Accuracy {
+        bf_relative_floor: 1.0,
+        ..Accuracy::default()
+    };
+    let s = solve(&scene, &bvh, accuracy);
     let h = &s.hierarchy;
     let name = |patch: u32| &scene.surfaces[scene.patches[patch as usize].surface as usize].name;
     let on_slat = |patch: u32| !matches!(name(patch).as_str(), "s0" | "s1");

@@ -213,8 +213,10 @@ fn links_grow_far_slower_than_elements_squared() {
     let exponent = (l2 / l0).ln() / (n2 / n0).ln();
     // Measured 1.50 with every link at 32 rays, 1.51 since links accepted
     // whatever their visibility take 4 (their one-ray-per-quarter spreads
-    // add a few shadow splits at the preview).
-    assert!(exponent < 1.55, "links ~ elements^{exponent}: {rows:?}");
+    // add a few shadow splits at the preview), 1.62 since the presets'
+    // thresholds follow each receiver's radiosity (the dim ceiling is
+    // resolved like the lit floor at the finer presets).
+    assert!(exponent < 1.7, "links ~ elements^{exponent}: {rows:?}");
 }
 
 /// True when (x, z) lies inside the floor footprint of a convex polygon.

@@ -112,7 +112,8 @@ pub struct HierarchicalArgs {
     pub bf_eps: Option<f64>,
     /// bf oracle, relative mode: a link's threshold follows its receiver's
     /// radiosity, down to this fraction of the threshold for receivers
-    /// dimmer than the mean emitted exitance by as much (1: absolute).
+    /// dimmer than the mean emitted exitance by as much (1: absolute;
+    /// every preset: 0.25).
     #[arg(long, value_name = "FLOOR")]
     pub bf_relative_floor: Option<f64>,
     /// power oracle: largest power a link may carry, as a fraction of the
