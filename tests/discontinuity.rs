@@ -573,3 +573,78 @@ fn blocked_wedges_end_on_the_first_surface() {
     // The unblocked mirror line on the other side is still on the floor.
     assert!(d.segments.iter().any(|s| on(s, 0, -1.5)));
 }
+
+/// A plate tilted at 45° and sunk 2 cm into a lit floor: none of its edges
+/// lies on the floor, yet the floor's radiosity jumps where the plate
+/// passes through it (the wedge under the plate is dark). The contact line
+/// is the chord the floor's plane cuts from the plate, x = 0 for
+/// |y| ≤ 0.5, whole.
+#[test]
+fn a_plate_sunk_into_the_floor_makes_a_contact_line_where_it_passes_through() {
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let floor = square(0.0, 2.0, true);
+    let light = square(3.0, 0.5, false);
+    let plate = [
+        [p(-0.02, -0.5, -0.02), p(0.3, -0.5, 0.3), p(0.3, 0.5, 0.3)],
+        [
+            p(-0.02, -0.5, -0.02),
+            p(0.3, 0.5, 0.3),
+            p(-0.02, 0.5, -0.02),
+        ],
+    ];
+    let mut tris = Vec::new();
+    for (k, (quad, emits)) in [(floor, false), (light, true), (plate, false)]
+        .into_iter()
+        .enumerate()
+    {
+        for t in quad {
+            tris.push(InputTriangle {
+                positions: t,
+                material: emits as u32,
+                surface: k as u32,
+                reflectance: DVec3::splat(0.5),
+                emitted_radiance: if emits { DVec3::ONE } else { DVec3::ZERO },
+            });
+        }
+    }
+    let material = |name: &str, le: f64| Material {
+        name: name.into(),
+        reflectance: DVec3::splat(0.5),
+        emitted_radiance: DVec3::splat(le),
+        double_sided: false,
+    };
+    let surfaces = ["floor", "light", "plate"]
+        .iter()
+        .enumerate()
+        .map(|(node, name)| Surface {
+            name: name.to_string(),
+            node,
+        })
+        .collect();
+    let scene = Scene::build(
+        tris,
+        vec![material("grey", 0.0), material("light", 1.0)],
+        surfaces,
+        vec![],
+        vec![],
+    )
+    .unwrap();
+    let bvh = TriangleBvh::of_scene(&scene);
+    let (d, _) = run(&scene, &bvh);
+    check_segments(&scene, &d.segments);
+    let on_line: Vec<&Segment> = d
+        .segments
+        .iter()
+        .filter(|s| {
+            s.kind == SegmentKind::Contact
+                && scene.patches[s.patch as usize].surface == 0
+                && s.a.x.abs() < 1e-9
+                && s.b.x.abs() < 1e-9
+        })
+        .collect();
+    let length: f64 = on_line.iter().map(|s| (s.b - s.a).length()).sum();
+    assert!(
+        (length - 1.0).abs() < 1e-9,
+        "contact length along x = 0 on the floor: {length} ({on_line:?})"
+    );
+}

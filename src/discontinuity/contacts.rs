@@ -1,30 +1,37 @@
 //! D0 discontinuities: contact lines, where an occluder edge rests on a
-//! receiver and the radiosity jumps across it.
+//! receiver or an occluder passes through it, and the radiosity jumps
+//! across the line.
 //!
 //! Owns: [`Context::contacts`].
 //!
 //! An edge makes a contact line on a receiver when both its ends lie within
 //! the contact tolerance of the receiver's plane and one of its triangles
 //! rises in front of the plane. Flat edges (inside a planar occluder face)
-//! never do.
+//! never do. A triangle with corners farther than the tolerance on both
+//! sides of a receiver's plane (a louvre sunk a few millimetres into a
+//! wall, a box pushed into a floor) makes one along the chord the plane
+//! cuts from it: no edge of it need lie on the receiver.
 //!
-//! Invariants: a contact segment is the edge projected onto the receiver's
-//! plane and clipped to its polygon, kept only when `Receiver::keeps` it;
+//! Invariants: a contact segment is the edge (or chord) projected onto the
+//! receiver's plane and clipped to its polygon, kept only when
+//! `Receiver::keeps` it;
 //! its weight sums the unoccluded irradiance of every luminaire facing the
-//! receiver. Segments come in edge order, then receiver order, whatever the
-//! thread count.
+//! receiver. Edge contacts come first, in edge order, then crossings in
+//! triangle order, each in receiver order, whatever the thread count.
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::CONTACT_TOL;
-use super::clip::{Bounds, clip_to_polygon};
+use super::clip::{Bounds, clip_to_polygon, plane_chord};
 use super::context::Context;
 use super::occluders::{Edge, third};
 use super::{Segment, SegmentKind};
 
 impl Context<'_> {
     /// D0: occluder edges lying in a receiver's plane with a triangle rising
-    /// in front of it, clipped to the receiver polygon.
+    /// in front of it, then the chords of triangles passing through a
+    /// receiver's plane, clipped to the receiver polygon.
     pub(super) fn contacts(&self) -> Vec<Segment> {
         let per_edge: Vec<Vec<Segment>> = self
             .occluders
@@ -32,7 +39,41 @@ impl Context<'_> {
             .par_iter()
             .map(|e| self.edge_contacts(e))
             .collect();
-        per_edge.into_iter().flatten().collect()
+        let per_triangle: Vec<Vec<Segment>> = (0..self.scene.triangles.len())
+            .into_par_iter()
+            .map(|t| self.crossings(t))
+            .collect();
+        per_edge.into_iter().chain(per_triangle).flatten().collect()
+    }
+
+    /// The lines along which triangle `t` passes through receivers, in
+    /// receiver order.
+    fn crossings(&self, t: usize) -> Vec<Segment> {
+        let mut out = Vec::new();
+        let p = self.scene.triangles[t].positions;
+        let tol_c = CONTACT_TOL * self.diagonal;
+        let bounds = Bounds {
+            lo: p[0].min(p[1]).min(p[2]),
+            hi: p[0].max(p[1]).max(p[2]),
+        };
+        for (r, rec) in self.receivers.iter().enumerate() {
+            if !bounds.overlaps(&rec.bounds) {
+                continue;
+            }
+            let d = p.map(|x| rec.distance(x));
+            let (lo, hi) = (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]));
+            if !(lo < -tol_c && hi > tol_c) {
+                continue;
+            }
+            let Some((a, b)) = plane_chord(&p, rec.normal, rec.normal.dot(rec.center), tol_c)
+            else {
+                continue;
+            };
+            if let Some(s) = self.contact_segment(r as u32, a, b) {
+                out.push(s);
+            }
+        }
+        out
     }
 
     /// The contact lines of one edge, in receiver order.
@@ -72,6 +113,14 @@ impl Context<'_> {
         if !rises {
             return None;
         }
+        self.contact_segment(r, pa, pb)
+    }
+
+    /// The contact segment on receiver `r` of the line from `pa` to `pb`
+    /// (within the contact tolerance of its plane): projected, clipped to
+    /// its polygon, weighed by the luminaires facing it.
+    fn contact_segment(&self, r: u32, pa: DVec3, pb: DVec3) -> Option<Segment> {
+        let rec = &self.receivers[r as usize];
         let (a, b) = clip_to_polygon(&rec.polygon, rec.normal, rec.project(pa), rec.project(pb))?;
         if !rec.keeps(a, b, self.diagonal) {
             return None;

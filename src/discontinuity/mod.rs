@@ -12,7 +12,8 @@
 //!    occluder edge graph (`occluders`), the receivers projected onto their
 //!    planes (`receivers`) and the significant luminaires, emitter patches
 //!    merged into convex polygons (`luminaires`).
-//! 2. `contacts`: D0, occluder edges resting on a receiver.
+//! 2. `contacts`: D0, occluder edges resting on a receiver and occluders
+//!    passing through one.
 //! 3. D1, when enabled: `silhouettes` lists, per luminaire, the occluder
 //!    edges and vertices that may be on its silhouette (the parallel jobs);
 //!    `wedges` builds the critical VE and EV wedges of each job; `trace`
