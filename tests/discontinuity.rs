@@ -26,9 +26,19 @@ fn square(z: f64, h: f64, up: bool) -> [[DVec3; 3]; 2] {
 
 /// Squares (z, half-size, facing up, emits), one surface each.
 fn squares(spec: &[(f64, f64, bool, bool)]) -> Scene {
+    let faces: Vec<_> = spec
+        .iter()
+        .map(|&(z, h, up, emits)| (square(z, h, up), emits))
+        .collect();
+    pairs_scene(&faces)
+}
+
+/// Pairs of triangles (grey, or emitting 1 W·m⁻²·sr⁻¹), one surface
+/// `square{k}` each.
+fn pairs_scene(faces: &[([[DVec3; 3]; 2], bool)]) -> Scene {
     let mut tris = Vec::new();
-    for (k, &(z, h, up, emits)) in spec.iter().enumerate() {
-        for t in square(z, h, up) {
+    for (k, &(pair, emits)) in faces.iter().enumerate() {
+        for t in pair {
             tris.push(InputTriangle {
                 positions: t,
                 material: emits as u32,
@@ -44,7 +54,7 @@ fn squares(spec: &[(f64, f64, bool, bool)]) -> Scene {
         emitted_radiance: DVec3::splat(le),
         double_sided: false,
     };
-    let surfaces = (0..spec.len())
+    let surfaces = (0..faces.len())
         .map(|k| Surface {
             name: format!("square{k}"),
             node: k,
@@ -582,8 +592,6 @@ fn blocked_wedges_end_on_the_first_surface() {
 #[test]
 fn a_plate_sunk_into_the_floor_makes_a_contact_line_where_it_passes_through() {
     let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    let floor = square(0.0, 2.0, true);
-    let light = square(3.0, 0.5, false);
     let plate = [
         [p(-0.02, -0.5, -0.02), p(0.3, -0.5, 0.3), p(0.3, 0.5, 0.3)],
         [
@@ -592,43 +600,11 @@ fn a_plate_sunk_into_the_floor_makes_a_contact_line_where_it_passes_through() {
             p(-0.02, 0.5, -0.02),
         ],
     ];
-    let mut tris = Vec::new();
-    for (k, (quad, emits)) in [(floor, false), (light, true), (plate, false)]
-        .into_iter()
-        .enumerate()
-    {
-        for t in quad {
-            tris.push(InputTriangle {
-                positions: t,
-                material: emits as u32,
-                surface: k as u32,
-                reflectance: DVec3::splat(0.5),
-                emitted_radiance: if emits { DVec3::ONE } else { DVec3::ZERO },
-            });
-        }
-    }
-    let material = |name: &str, le: f64| Material {
-        name: name.into(),
-        reflectance: DVec3::splat(0.5),
-        emitted_radiance: DVec3::splat(le),
-        double_sided: false,
-    };
-    let surfaces = ["floor", "light", "plate"]
-        .iter()
-        .enumerate()
-        .map(|(node, name)| Surface {
-            name: name.to_string(),
-            node,
-        })
-        .collect();
-    let scene = Scene::build(
-        tris,
-        vec![material("grey", 0.0), material("light", 1.0)],
-        surfaces,
-        vec![],
-        vec![],
-    )
-    .unwrap();
+    let scene = pairs_scene(&[
+        (square(0.0, 2.0, true), false),
+        (square(3.0, 0.5, false), true),
+        (plate, false),
+    ]);
     let bvh = TriangleBvh::of_scene(&scene);
     let (d, _) = run(&scene, &bvh);
     check_segments(&scene, &d.segments);

@@ -52,8 +52,7 @@ fn presets() -> Vec<(&'static str, Accuracy)> {
 
 #[test]
 fn closed_hard_scenes_absorb_what_they_emit() {
-    // The gallery (clusters) is not in this list yet: it closes to 0.963
-    // at the default preset (issue 21).
+    // The gallery is in its own test, slow.
     let mut failures = Vec::new();
     for name in ["sealed-rooms", "table-gap", "corridor"] {
         let scene = bundled_scene(&format!("hard/{name}.gltf"));
@@ -64,6 +63,33 @@ fn closed_hard_scenes_absorb_what_they_emit() {
             if (ratio - DVec3::ONE).abs().max_element() > 0.005 {
                 failures.push(format!("{name} {preset}: {ratio:.4}"));
             }
+        }
+    }
+    assert!(failures.is_empty(), "off by more than 0.5 %: {failures:?}");
+}
+
+/// The gallery (clusters, light that arrives after bounces off louvres)
+/// closes too, at preview and default: measured 1.0028 and 1.0011
+/// (0.963 at the default before the cluster links carried what their rays
+/// reach and links carried fresh readings; `solve`, guided by the
+/// discontinuities, 0.9959 and 1.0010). `high` is left out: on 2 GiB its
+/// first linking is coarsened (1.0070 from `solve`, 430 s).
+#[test]
+fn the_gallery_absorbs_what_it_emits() {
+    if !slow_tests("hard::the_gallery_absorbs_what_it_emits") {
+        return;
+    }
+    let scene = bundled_scene("hard/gallery.gltf");
+    let bvh = TriangleBvh::of_scene(&scene);
+    let mut failures = Vec::new();
+    for (preset, accuracy) in [
+        ("preview", Accuracy::preview()),
+        ("default", Accuracy::default()),
+    ] {
+        let ratio = closure(&scene, &solve(&scene, &bvh, accuracy));
+        eprintln!("gallery {preset}: absorbed / emitted {ratio:.4}");
+        if (ratio - DVec3::ONE).abs().max_element() > 0.005 {
+            failures.push(format!("{preset}: {ratio:.4}"));
         }
     }
     assert!(failures.is_empty(), "off by more than 0.5 %: {failures:?}");
