@@ -31,7 +31,8 @@ pub struct PhaseTimes {
     pub mesh: f64,
     /// Classic: the form-factor matrix.
     pub form_factors: f64,
-    /// The solve proper (gathering, shooting or elimination).
+    /// The solve proper (gathering, shooting or elimination; with the
+    /// hierarchical method's defect correction).
     pub solve: f64,
     /// The output mesh and its vertex values.
     pub output_mesh: f64,
@@ -116,6 +117,15 @@ pub struct ConvergenceReport {
     pub rounds: Vec<crate::hierarchical::Round>,
 }
 
+/// What the defect correction did (`hierarchical::correction`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CorrectionReport {
+    /// What each pass found.
+    pub passes: Vec<crate::hierarchical::CorrectionPass>,
+    /// Seconds in the correction's rays (part of `times.solve`).
+    pub seconds: f64,
+}
+
 /// Energy balance, W per channel.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Power {
@@ -168,6 +178,9 @@ pub struct Report {
     /// coplanar patches meet.
     #[serde(default)]
     pub estimated_error: Option<crate::meshing::seams::SeamSteps>,
+    /// Hierarchical: the defect correction (`null` when off).
+    #[serde(default)]
+    pub correction: Option<CorrectionReport>,
     /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
     pub max_row_sum: f64,
     /// Mean Σ_j F_ij over the rows.

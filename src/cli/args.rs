@@ -13,7 +13,10 @@ use glam::DVec3;
 
 use nusselt::classic::matrix::{Kernel, MatrixSettings};
 use nusselt::hierarchical::oracle::Oracle;
-use nusselt::hierarchical::{Accuracy, Clustering, HierarchicalSettings, Preset};
+use nusselt::hierarchical::{
+    Accuracy, Clustering, DEFAULT_CORRECTION_PASSES, DEFAULT_CORRECTION_RAYS,
+    DEFAULT_CORRECTION_TOLERANCE, HierarchicalSettings, Preset,
+};
 use nusselt::load::LoadOptions;
 use nusselt::render::view::ViewOverrides;
 
@@ -152,6 +155,26 @@ pub struct HierarchicalArgs {
     /// machine's speed.
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
+
+    /// Passes of defect correction after the last round: the solution's
+    /// own radiosities gathered by rays at every patch, the difference
+    /// from what its links deliver fed back, the links solved again (0:
+    /// off)
+    #[arg(long, default_value_t = DEFAULT_CORRECTION_PASSES,
+          value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub correction_passes: u32,
+
+    /// Rays per patch of each correction pass, at least (and 16 per leaf)
+    #[arg(long, default_value_t = DEFAULT_CORRECTION_RAYS as u64,
+          value_parser = clap::value_parser!(u64).range(1..=65536))]
+    pub correction_rays: u64,
+
+    /// A patch's correction is used once it is three standard errors from
+    /// zero or known to this fraction of its light; a patch whose own rays
+    /// fall short borrows the pooled correction of the patches around it
+    /// that face the same way
+    #[arg(long, default_value_t = DEFAULT_CORRECTION_TOLERANCE)]
+    pub correction_tolerance: f64,
 }
 
 /// What the hierarchical method takes from other flag groups.
@@ -201,6 +224,9 @@ impl HierarchicalArgs {
             time_budget: self.time_budget,
             importance: None,
             clustering: self.clustering,
+            correction_passes: self.correction_passes,
+            correction_rays: self.correction_rays as usize,
+            correction_tolerance: self.correction_tolerance,
         })
     }
 }

@@ -98,6 +98,9 @@ impl Solver<'_> {
             if let Some(c) = &self.clusters {
                 c.gather(self.scene, &self.hierarchy.elements, &mut gathered);
             }
+            for (g, c) in gathered.iter_mut().zip(&self.correction) {
+                *g += *c;
+            }
             let p = self.push_pull(&gathered, irradiance);
             if let Some(c) = &mut self.clusters {
                 c.pull_from(self.scene, &self.hierarchy.elements);

@@ -33,6 +33,7 @@
 use glam::DVec3;
 
 use crate::scene::{Scene, Shape, polygon_area_normal, polygon_centroid};
+use crate::util::geometry::outside_polygon;
 
 /// Index of an element in a [`Hierarchy`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -200,6 +201,25 @@ impl Hierarchy {
     /// True when there is no element.
     pub fn is_empty(&self) -> bool {
         self.elements.is_empty()
+    }
+
+    /// The leaf of `patch`'s quadtree holding `x`: from the root, the
+    /// child that `x` is least outside of (the first such, on a shared
+    /// edge).
+    pub fn leaf_at(&self, scene: &Scene, patch: usize, x: DVec3) -> ElementId {
+        let normal = scene.patches[patch].normal;
+        let mut id = self.root(patch);
+        while let Some(kids) = self.get(id).children() {
+            let mut best = (f64::INFINITY, kids[0]);
+            for k in kids {
+                let d = outside_polygon(self.get(k).vertices(), normal, x);
+                if d < best.0 {
+                    best = (d, k);
+                }
+            }
+            id = best.1;
+        }
+        id
     }
 
     /// The root of patch `patch`.

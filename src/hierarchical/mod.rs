@@ -43,6 +43,7 @@
 
 pub mod budget;
 pub mod cluster;
+mod correction;
 mod gather;
 pub mod hierarchy;
 mod importance;
@@ -57,7 +58,10 @@ mod solver;
 
 pub use budget::{Budget, BudgetHit, Coarsened};
 pub use limits::memory_estimate;
-pub use settings::{Accuracy, Clustering, DEFAULT_MEMORY_BUDGET, HierarchicalSettings, Preset};
-pub use solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};
+pub use settings::{
+    Accuracy, Clustering, DEFAULT_CORRECTION_PASSES, DEFAULT_CORRECTION_RAYS,
+    DEFAULT_CORRECTION_TOLERANCE, DEFAULT_MEMORY_BUDGET, HierarchicalSettings, Preset,
+};
+pub use solution::{CorrectionPass, HierarchicalSolution, HierarchicalTimes, Iteration, Round};
 pub(crate) use solver::scene_scales;
 pub use solver::{solve_hierarchical, solve_hierarchical_guided};

@@ -60,6 +60,23 @@ pub struct HierarchicalTimes {
     pub refinement: f64,
     /// Gather and push-pull iterations.
     pub solve: f64,
+    /// The defect correction's rays.
+    pub correction: f64,
+}
+
+/// What one pass of defect correction found (`hierarchical::correction`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CorrectionPass {
+    /// The net residual: the area-weighted (ray gather − links) that was
+    /// fed back, over the links' reflected light. The first pass says how
+    /// far the links were from their own transport; later passes should
+    /// fall towards the rays' noise.
+    pub residual: f64,
+    /// Rays cast.
+    pub rays: usize,
+    /// Of them, rays that hit the back of a one-sided surface (left out
+    /// of the gather).
+    pub back_faces: usize,
 }
 
 /// The result of `solve_hierarchical`.
@@ -99,6 +116,11 @@ pub struct HierarchicalSolution {
     pub cluster_irradiance: Vec<DVec3>,
     /// Per patch, the part of `cluster_irradiance` that comes from emission (the sources' own light).
     pub cluster_direct: Vec<DVec3>,
+    /// Per patch, the irradiance the defect correction adds (a mean over
+    /// the patch's whole area, like `irradiance`; empty: none).
+    pub correction: Vec<DVec3>,
+    /// What each defect-correction pass found.
+    pub correction_passes: Vec<CorrectionPass>,
     /// Per patch, the importance weight refinement used last (empty
     /// without importance).
     pub importance: Vec<f64>,

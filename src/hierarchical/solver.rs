@@ -18,7 +18,9 @@ use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::{Evaluator, Inherited, Link};
 use crate::hierarchical::oracle::{Ends, RHO_FLOOR, Thresholds};
 use crate::hierarchical::settings::HierarchicalSettings;
-use crate::hierarchical::solution::{HierarchicalSolution, HierarchicalTimes, Iteration, Round};
+use crate::hierarchical::solution::{
+    CorrectionPass, HierarchicalSolution, HierarchicalTimes, Iteration, Round,
+};
 use crate::scene::Scene;
 use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
@@ -84,6 +86,9 @@ pub(super) struct Solver<'a> {
     pub(super) coarsened_by: Option<Budget>,
     /// True until the first linking is done: only it starts again coarser.
     pub(super) first_linking: bool,
+    /// Per patch, the irradiance the defect correction adds to every
+    /// gather (`super::correction`; empty: none yet).
+    pub(super) correction: Vec<DVec3>,
 }
 
 /// How much coarser every threshold gets when a budget stops the first
@@ -139,7 +144,16 @@ pub fn solve_hierarchical_guided(
     let guided_splits = solver.follow_discontinuities(guide);
     times.refinement += t.elapsed().as_secs_f64();
 
-    let rounds = solver.run_rounds(first_splits + guided_splits, &mut times, progress);
+    let mut rounds = solver.run_rounds(first_splits + guided_splits, &mut times, progress);
+    for pass in 0..settings.correction_passes {
+        let t = Instant::now();
+        let residual = solver.correct(&rounds.irradiance, settings.correction_rays, pass);
+        rounds.correction_passes.push(residual);
+        times.correction += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        rounds.converged = solver.iterate(&mut rounds.irradiance, &mut rounds.history, start, true);
+        times.solve += t.elapsed().as_secs_f64();
+    }
     solver.finish(rounds, times)
 }
 
@@ -190,6 +204,9 @@ pub(super) struct Rounds {
     rounds: Vec<Round>,
     converged: bool,
     rounds_exhausted: bool,
+    /// Per defect-correction pass, the residual it found
+    /// ([`Solver::correct`]).
+    correction_passes: Vec<CorrectionPass>,
 }
 
 impl<'a> Solver<'a> {
@@ -226,6 +243,7 @@ impl<'a> Solver<'a> {
             coarsened: 0,
             coarsened_by: None,
             first_linking: true,
+            correction: Vec::new(),
         };
         if let Some(seen) = &settings.importance {
             solver.weight = (0..scene.patches.len())
@@ -307,6 +325,7 @@ impl<'a> Solver<'a> {
             rounds: Vec::new(),
             converged: false,
             rounds_exhausted: false,
+            correction_passes: Vec::new(),
         };
         let mut gradient_splits = 0;
         let mut resampled_links = std::mem::take(&mut self.resampled);
@@ -387,6 +406,8 @@ impl<'a> Solver<'a> {
             clusters: self.clusters,
             cluster_irradiance,
             cluster_direct,
+            correction: self.correction,
+            correction_passes: rounds.correction_passes,
             links: self.links,
             irradiance: rounds.irradiance,
             history: rounds.history,

@@ -19,12 +19,11 @@ use rayon::prelude::*;
 
 use crate::formfactor::form_factor_point_polygon;
 use crate::hierarchical::HierarchicalSolution;
-use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
+use crate::hierarchical::hierarchy::ElementId;
 use crate::hierarchical::link::weighted_visibility;
 use crate::hierarchical::oracle::receiver_threshold;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
-use crate::util::geometry::outside_polygon;
 use crate::visibility::{Shaft, TriangleBvh};
 
 /// Visibility rays per link not too dim to matter in [`point_radiosity`].
@@ -199,6 +198,13 @@ pub fn point_radiosity(
             irradiance += c / exposure;
         }
     }
+    if let Some(&c) = solution.correction.get(e.patch as usize) {
+        // Defect correction: a mean over the patch, like the cluster light.
+        let exposure = f64::from(h.elements[e.patch as usize].exposure);
+        if exposure > 0.0 {
+            irradiance += c / exposure;
+        }
+    }
     let mut id = Some(leaf);
     while let Some(k) = id {
         for l in &solution.links[k.index()] {
@@ -288,7 +294,7 @@ impl<'a> PointEvaluator<'a> {
     /// The radiosity at `x` on patch `patch`, `link_rays` saying which
     /// links cast their own rays from `x`.
     pub fn value(&self, patch: usize, x: DVec3, link_rays: LinkRays) -> DVec3 {
-        let leaf = locate(&self.solution.hierarchy, self.scene, patch, x);
+        let leaf = self.solution.hierarchy.leaf_at(self.scene, patch, x);
         let gather = PointGather {
             link_rays,
             direct: &self.direct,
@@ -305,22 +311,4 @@ impl<'a> PointEvaluator<'a> {
         )
         .max(DVec3::ZERO)
     }
-}
-
-/// The leaf of `patch`'s quadtree holding `x`: from the root, the child
-/// that `x` is least outside of (the first such, on a shared edge).
-fn locate(h: &Hierarchy, scene: &Scene, patch: usize, x: DVec3) -> ElementId {
-    let normal = scene.patches[patch].normal;
-    let mut id = h.root(patch);
-    while let Some(kids) = h.get(id).children() {
-        let mut best = (f64::INFINITY, kids[0]);
-        for k in kids {
-            let d = outside_polygon(h.get(k).vertices(), normal, x);
-            if d < best.0 {
-                best = (d, k);
-            }
-        }
-        id = best.1;
-    }
-    id
 }

@@ -18,7 +18,7 @@ use crate::hierarchical::{HierarchicalSettings, HierarchicalSolution, solve_hier
 use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::render::render;
 use crate::render::view::View;
-use crate::report::{Counts, ImportanceReport, Power, Report};
+use crate::report::{CorrectionReport, Counts, ImportanceReport, Power, Report};
 use crate::scene::Scene;
 use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
@@ -99,7 +99,13 @@ fn report_solution(
     }
     report.times.linking = solution.times.linking;
     report.times.refinement = solution.times.refinement;
-    report.times.solve = solution.times.solve;
+    report.times.solve = solution.times.solve + solution.times.correction;
+    if !solution.correction_passes.is_empty() {
+        report.correction = Some(CorrectionReport {
+            passes: solution.correction_passes.clone(),
+            seconds: solution.times.correction,
+        });
+    }
 
     let h = &solution.hierarchy;
     let leaves: Vec<usize> = h.leaves().map(|id| id.index()).collect();

@@ -31,9 +31,12 @@ pub fn scenes() -> Vec<HardScene> {
         HardScene {
             scene: gallery(),
             checks: "median, 90th-percentile and worst point error and the mean bias against \
-path-traced point references, and absorbed against emitted power, in BENCHMARKS.md; absorbed \
-= emitted within 0.5 % at preview and default (slow test \
-`hard::the_gallery_absorbs_what_it_emits`, `NUSSELT_SLOW_TESTS=1`)",
+the committed point table `gallery.points.csv` (`nusselt probe scenes/hard/gallery.gltf \
+--random 200 --seed 1 --spp 1000000`), and absorbed against emitted power, in BENCHMARKS.md; \
+absorbed = emitted within 0.5 % at preview and default, and the hall brought to its points by \
+the defect correction (slow tests `hard::the_gallery_absorbs_what_it_emits`, \
+`hard::the_defect_correction_brings_the_gallery_hall_to_its_point_table`, \
+`NUSSELT_SLOW_TESTS=1`)",
             held_out: false,
         },
         HardScene {
@@ -52,8 +55,9 @@ absorbed = emitted",
         },
         HardScene {
             scene: corridor(),
-            checks: "the held-out scene: point errors reported apart from the scenes the \
-solver was tuned on; absorbed = emitted",
+            checks: "the held-out scene: point errors against the committed point table \
+`corridor.points.csv` (`nusselt probe scenes/hard/corridor.gltf --random 60 --seed 0 --spp \
+1000000`) reported apart from the scenes the solver was tuned on; absorbed = emitted",
             held_out: true,
         },
     ]

@@ -60,6 +60,32 @@ pub struct ClusterTree {
 }
 
 impl ClusterTree {
+    /// For each patch, the clusters above it, nearest first.
+    pub fn ancestors(&self) -> Vec<Vec<u32>> {
+        let mut parent_of_cluster = vec![u32::MAX; self.len()];
+        let mut parent_of_patch = vec![u32::MAX; self.order.len()];
+        for (c, cl) in self.clusters.iter().enumerate() {
+            for k in cl.kids {
+                match k {
+                    Node::Cluster(k) => parent_of_cluster[k as usize] = c as u32,
+                    Node::Patch(p) => parent_of_patch[p as usize] = c as u32,
+                }
+            }
+        }
+        parent_of_patch
+            .iter()
+            .map(|&first| {
+                let mut out = Vec::new();
+                let mut c = first;
+                while c != u32::MAX {
+                    out.push(c);
+                    c = parent_of_cluster[c as usize];
+                }
+                out
+            })
+            .collect()
+    }
+
     /// Builds the tree from a BVH2 over the patches' boxes (one patch per
     /// leaf; a leaf holding several is split in halves).
     pub fn new(scene: &Scene) -> ClusterTree {
