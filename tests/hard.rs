@@ -27,6 +27,34 @@ fn solve(scene: &Scene, bvh: &TriangleBvh, accuracy: Accuracy) -> HierarchicalSo
     solve_hierarchical(scene, bvh, &settings, &Progress::hidden())
 }
 
+/// The whole solve (output mesh included) with `hierarchical` and a small
+/// cheap view, scored against a point table.
+fn solve_and_score(
+    scene: &Scene,
+    hierarchical: HierarchicalSettings,
+    table: &[nusselt::reference::ProbeValue],
+) -> (nusselt::SolveRun, nusselt::lab::points::PointScore) {
+    use nusselt::render::RenderSettings;
+    use nusselt::render::view::ViewOverrides;
+    use nusselt::{SolveSettings, solve};
+    let settings = SolveSettings {
+        hierarchical,
+        render: RenderSettings {
+            samples_per_pixel: 1,
+            seed: 0,
+        },
+        view: ViewOverrides {
+            width: Some(32),
+            height: Some(24),
+            ..ViewOverrides::default()
+        },
+        ..SolveSettings::default()
+    };
+    let run = solve(scene, &settings, &Progress::hidden()).unwrap();
+    let (s, _) = nusselt::lab::points::score(&run.mesh, table).unwrap();
+    (run, s)
+}
+
 /// Absorbed over emitted power per channel, from the leaves' irradiance
 /// (the report's `power`).
 fn closure(scene: &Scene, s: &HierarchicalSolution) -> DVec3 {
@@ -103,10 +131,7 @@ fn the_gallery_absorbs_what_it_emits() {
 /// net residual of −0.1 %.
 #[test]
 fn the_defect_correction_brings_the_gallery_hall_to_its_point_table() {
-    use nusselt::lab::points::{read_table, score};
-    use nusselt::render::RenderSettings;
-    use nusselt::render::view::ViewOverrides;
-    use nusselt::{SolveSettings, solve};
+    use nusselt::lab::points::read_table;
     if !slow_tests("hard::the_defect_correction_brings_the_gallery_hall_to_its_point_table") {
         return;
     }
@@ -119,24 +144,11 @@ fn the_defect_correction_brings_the_gallery_hall_to_its_point_table() {
     let scene = bundled_scene("hard/gallery.gltf");
     let mut bias = Vec::new();
     for passes in [0, 2] {
-        let settings = SolveSettings {
-            hierarchical: HierarchicalSettings {
-                correction_passes: passes,
-                ..HierarchicalSettings::default()
-            },
-            render: RenderSettings {
-                samples_per_pixel: 1,
-                seed: 0,
-            },
-            view: ViewOverrides {
-                width: Some(16),
-                height: Some(12),
-                ..ViewOverrides::default()
-            },
-            ..SolveSettings::default()
+        let hierarchical = HierarchicalSettings {
+            correction_passes: passes,
+            ..HierarchicalSettings::default()
         };
-        let run = solve(&scene, &settings, &Progress::hidden()).unwrap();
-        let (s, _) = score(&run.mesh, &hall).unwrap();
+        let (run, s) = solve_and_score(&scene, hierarchical, &hall);
         eprintln!(
             "gallery hall, {passes} correction passes: median {:.4}, power bias {:+.4}",
             s.median, s.power_bias
@@ -310,10 +322,7 @@ fn the_sealed_room_gets_nothing_through_its_wall() {
 
 #[test]
 fn table_gap_agrees_with_its_committed_point_table() {
-    use nusselt::lab::points::{read_table, score};
-    use nusselt::render::RenderSettings;
-    use nusselt::render::view::ViewOverrides;
-    use nusselt::{SolveSettings, solve};
+    use nusselt::lab::points::read_table;
     // scenes/hard/table-gap.points.csv: `nusselt probe
     // scenes/hard/table-gap.gltf --random 60 --spp 100000 --seed 3`,
     // median standard error 0.25 %. Measured: preview median 0.90 %, p90
@@ -325,24 +334,11 @@ fn table_gap_agrees_with_its_committed_point_table() {
         ("preview", Accuracy::preview(), 0.015, 0.06),
         ("default", Accuracy::default(), 0.012, 0.03),
     ] {
-        let settings = SolveSettings {
-            hierarchical: HierarchicalSettings {
-                accuracy,
-                ..HierarchicalSettings::default()
-            },
-            render: RenderSettings {
-                samples_per_pixel: 1,
-                seed: 0,
-            },
-            view: ViewOverrides {
-                width: Some(32),
-                height: Some(24),
-                ..ViewOverrides::default()
-            },
-            ..SolveSettings::default()
+        let hierarchical = HierarchicalSettings {
+            accuracy,
+            ..HierarchicalSettings::default()
         };
-        let run = solve(&scene, &settings, &Progress::hidden()).unwrap();
-        let (s, _) = score(&run.mesh, &table).unwrap();
+        let (_, s) = solve_and_score(&scene, hierarchical, &table);
         eprintln!(
             "{preset}: median {:.4}, p90 {:.4}, mean bias {:+.4}",
             s.median, s.p90, s.mean_bias

@@ -72,6 +72,7 @@ use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
 use crate::hierarchical::cluster::ClusterTree;
+use crate::hierarchical::gather::push_down;
 use crate::hierarchical::hierarchy::Hierarchy;
 use crate::hierarchical::solution::CorrectionPass;
 use crate::hierarchical::solver::Solver;
@@ -235,17 +236,7 @@ impl Solver<'_> {
             }
         }
         let mut down = vec![DVec3::ZERO; h.len()];
-        for i in 0..h.len() {
-            let e = &h.elements[i];
-            let from_parent = e.parent().map_or(DVec3::ZERO, |p| {
-                let parent = f64::from(h.elements[p.index()].exposure);
-                match parent > 0.0 {
-                    true => down[p.index()] * (f64::from(e.exposure) / parent),
-                    false => DVec3::ZERO,
-                }
-            });
-            down[i] = gathered[i] + from_parent;
-        }
+        push_down(h, &gathered, &mut down);
         patch_means(h, &down)
     }
 }

@@ -169,18 +169,8 @@ impl Solver<'_> {
         // by its exposed part only, so a child gets its parent's share by
         // exposure: e_child / e_parent of the parent's mean (Σ A·H is kept,
         // and a buried child gets none).
+        push_down(&self.hierarchy, gathered, irradiance);
         let h = &mut self.hierarchy;
-        for i in 0..h.len() {
-            let e = &h.elements[i];
-            let down = e.parent().map_or(DVec3::ZERO, |p| {
-                let parent = f64::from(h.elements[p.index()].exposure);
-                match parent > 0.0 {
-                    true => irradiance[p.index()] * (f64::from(e.exposure) / parent),
-                    false => DVec3::ZERO,
-                }
-            });
-            irradiance[i] = gathered[i] + down;
-        }
         for i in (0..h.len()).rev() {
             let e = &h.elements[i];
             let (b, exposed, exposure) = match e.children() {
@@ -335,5 +325,22 @@ pub(crate) fn seen_radiosity(h: &Hierarchy, source: ElementId, shares: Shares) -
         b / weight
     } else {
         s.exposed_radiosity
+    }
+}
+
+/// The push half of push-pull: each element's total irradiance, its own
+/// gathered plus its parent's total shared by exposure (parents precede
+/// children in the arena, so one pass in arena order does it).
+pub(super) fn push_down(h: &Hierarchy, gathered: &[DVec3], total: &mut [DVec3]) {
+    for i in 0..h.len() {
+        let e = &h.elements[i];
+        let down = e.parent().map_or(DVec3::ZERO, |p| {
+            let parent = f64::from(h.elements[p.index()].exposure);
+            match parent > 0.0 {
+                true => total[p.index()] * (f64::from(e.exposure) / parent),
+                false => DVec3::ZERO,
+            }
+        });
+        total[i] = gathered[i] + down;
     }
 }
