@@ -36,7 +36,7 @@ fn settings(budget: impl FnOnce(&mut HierarchicalSettings)) -> SolveSettings {
 }
 
 /// Solves and checks what every run must hold, budget or not: finite,
-/// non-negative output, absorbed power at most the emitted, and the report
+/// non-negative output, absorbed power at most the emitted (to 10⁻³), and the report
 /// naming the budget exactly when a warning does.
 fn run(scene: &Scene, settings: &SolveSettings) -> SolveRun {
     let run = solve(scene, settings, &Progress::hidden()).unwrap();
@@ -47,7 +47,9 @@ fn run(scene: &Scene, settings: &SolveSettings) -> SolveRun {
     let p = &run.report.power;
     for c in 0..3 {
         assert!(p.emitted[c] > 0.0 && p.absorbed[c].is_finite(), "{p:?}");
-        assert!(p.absorbed[c] <= p.emitted[c], "{p:?}");
+        // The defect correction's rays are unbiased, not exact: in this
+        // closed box they leave the balance within 10⁻³ (measured 6·10⁻⁴).
+        assert!(p.absorbed[c] <= p.emitted[c] * (1.0 + 1e-3), "{p:?}");
     }
     let warned = run.report.warnings.iter().find(|w| w.contains("budget"));
     match &run.report.budget {
