@@ -106,10 +106,7 @@ fn cornell_box_outputs_agree_with_the_solution() {
     let again = render(
         &mesh,
         &view,
-        &RenderSettings {
-            samples_per_pixel: 4,
-            seed: 0,
-        },
+        &RenderSettings::with_samples(4, 0),
         &nusselt::util::progress::Progress::hidden(),
     );
     assert_eq!(frame, again);

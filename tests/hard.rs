@@ -39,10 +39,7 @@ fn solve_and_score(
     use nusselt::{SolveSettings, solve};
     let settings = SolveSettings {
         hierarchical,
-        render: RenderSettings {
-            samples_per_pixel: 1,
-            seed: 0,
-        },
+        render: RenderSettings::with_samples(1, 0),
         view: ViewOverrides {
             width: Some(32),
             height: Some(24),

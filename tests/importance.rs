@@ -29,10 +29,7 @@ fn corner() -> ViewOverrides {
 fn run(scene: &Scene, importance: bool) -> SolveRun {
     let mut settings = SolveSettings {
         importance,
-        render: RenderSettings {
-            samples_per_pixel: 4,
-            seed: 0,
-        },
+        render: RenderSettings::with_samples(4, 0),
         view: corner(),
         ..SolveSettings::default()
     };

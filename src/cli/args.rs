@@ -76,7 +76,9 @@ pub struct ViewArgs {
     #[arg(long)]
     pub fov: Option<f64>,
     /// Samples per pixel (`solve`, `render`: stratified, rounded up to a
-    /// square; `reference`: independent paths, at least 2).
+    /// square, and 16 times as many, at most 4096, in pixels whose samples
+    /// disagree, such as edges; `reference`: independent paths, at least
+    /// 2).
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
 }

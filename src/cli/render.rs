@@ -75,10 +75,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         overrides.height = Some(v.height);
     }
     let view = View::resolve(base.as_ref(), (lo, hi), &overrides)?;
-    let settings = RenderSettings {
-        samples_per_pixel: args.view.spp,
-        seed: args.common.seed,
-    };
+    let settings = RenderSettings::with_samples(args.view.spp, args.common.seed);
     let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
     nusselt::output::write_atomic(&args.output, &nusselt::output::exr::encode_image(&frame)?)?;
     if let Some(png) = &args.png {

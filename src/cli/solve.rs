@@ -126,10 +126,7 @@ impl SolveArgs {
                 tolerance: self.tolerance,
                 max_iterations: self.max_iterations,
             },
-            render: RenderSettings {
-                samples_per_pixel: self.view.spp,
-                seed: self.common.seed,
-            },
+            render: RenderSettings::with_samples(self.view.spp, self.common.seed),
             view: self.view.overrides(),
             snapshots: self.snapshots.clone(),
             wireframe: self.wireframe,

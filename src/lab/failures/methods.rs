@@ -29,10 +29,7 @@ pub fn table_methods(t: &TableSettings) -> Vec<TableMethod> {
             seed: t.seed,
             ..MatrixSettings::default()
         },
-        render: RenderSettings {
-            samples_per_pixel: t.render_spp,
-            seed: t.seed,
-        },
+        render: RenderSettings::with_samples(t.render_spp, t.seed),
         view: t.view(),
         convergence: Convergence {
             max_iterations: t.max_sweeps,

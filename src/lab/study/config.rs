@@ -207,10 +207,7 @@ fn base_settings(config: &StudyConfig, overrides: &ViewOverrides) -> SolveSettin
             seed: config.seed,
             ..MatrixSettings::default()
         },
-        render: RenderSettings {
-            samples_per_pixel: config.render_spp,
-            seed: config.seed,
-        },
+        render: RenderSettings::with_samples(config.render_spp, config.seed),
         view: overrides.clone(),
         ..SolveSettings::default()
     }
