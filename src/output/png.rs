@@ -23,18 +23,13 @@ use image::codecs::png::PngEncoder;
 
 use crate::error::{Error, Result};
 use crate::render::frame::Frame;
+pub use crate::render::frame::luminance;
 
 /// The fraction of the positive luminances that [`auto_exposure`] keeps
 /// below full scale.
 pub const AUTO_EXPOSURE_PERCENTILE: f64 = 0.99;
 /// The display value [`auto_exposure`] gives to that percentile.
 pub const AUTO_EXPOSURE_TARGET: f32 = 0.9;
-
-/// Luminance of linear Rec.709 / sRGB primaries: 0.2126 R + 0.7152 G +
-/// 0.0722 B.
-pub fn luminance(rgb: [f32; 3]) -> f32 {
-    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
-}
 
 /// The exposure that maps the 99th percentile of the positive, finite
 /// luminances to display value 0.9: `0.9 / p99`.

@@ -4,6 +4,12 @@
 //! Invariant: `pixels.len() == width * height`, row 0 at the top, each pixel
 //! the mean outgoing radiance L over its footprint (W / (m² sr)).
 
+/// Luminance of linear Rec.709 / sRGB primaries: 0.2126 R + 0.7152 G +
+/// 0.0722 B.
+pub fn luminance(rgb: [f32; 3]) -> f32 {
+    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+}
+
 /// A float RGB image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {

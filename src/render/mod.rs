@@ -79,9 +79,9 @@ pub const MAX_EDGE_SAMPLES: u32 = 4096;
 /// this fraction of the image's mean luminance.
 pub const EDGE_SPREAD: f64 = 0.05;
 
-/// Luminance of a radiance, as the PNG writer and `compare` take it.
+/// [`frame::luminance`] of a radiance.
 fn luminance(c: DVec3) -> f64 {
-    f64::from(crate::output::png::luminance(c.as_vec3().to_array()))
+    f64::from(frame::luminance(c.as_vec3().to_array()))
 }
 
 /// Renders `mesh` from `view`.
