@@ -405,16 +405,18 @@ fn shared_edge_form_factor_matches_its_closed_form() {
 /// `furnace-099` absorbed 23.5 % more than it emits when this was written
 /// (every form-factor error is amplified by 1 / (1 − ρ) = 100; 2.2 M links
 /// in about 160 s), 0.9936 of it with the defect correction (2026-12-03);
-/// `many-emitters` absorbed 4.5 % more (2 304 emitter patches). FAILS
-/// since an unidentified change: 2026-12-03 it absorbs 1.141 of its power
-/// without the correction and 1.178 with it (1.148 without clusters;
-/// 1.067 at the default preset); the limit stays until that is found.
+/// `many-emitters` (2 304 emitter patches) absorbed 1.141 of its power
+/// from 5f8bece until 2026-12-04: `sharpen` let dim links keep an error of
+/// 5 % of the oracle's threshold each, and a wall's 2 304 links to the
+/// emitters added theirs up. With that tolerance capped at a tenth of F
+/// it is 0.997 without the correction and 1.018 with it (default preset
+/// 1.018).
 #[test]
 fn slow_scenes_keep_the_invariants() {
     if !slow_tests("stress::slow_scenes_keep_the_invariants") {
         return;
     }
-    for (name, energy_tol) in [("furnace-099", 0.3), ("many-emitters", 0.06)] {
+    for (name, energy_tol) in [("furnace-099", 0.3), ("many-emitters", 0.03)] {
         let scene = stress_scene(name);
         let run = run_checked(name, &scene, &hierarchical(Accuracy::preview()), energy_tol);
         let p = &run.report.power;
