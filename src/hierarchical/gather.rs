@@ -74,29 +74,27 @@ impl Solver<'_> {
 
     /// Gather + push-pull until Σ B·A changes by less than the tolerance
     /// (at least two iterations); appends to `history`. Returns whether the
-    /// tolerance was met. With `shared`, links weigh their split sources'
-    /// children by [`source_shares`] (the final solve: refinement rounds
-    /// in between do without, which is cheaper).
+    /// tolerance was met. With `shares` ([`source_shares`] of the current
+    /// links), links weigh their split sources' children by them (the
+    /// final solve: refinement rounds in between do without, which is
+    /// cheaper).
     pub(super) fn iterate(
         &mut self,
         irradiance: &mut [DVec3],
         history: &mut Vec<Iteration>,
         start: Instant,
-        shared: bool,
+        shares: Option<&[Vec<(u32, Shares)>]>,
     ) -> bool {
         self.measure_exposure();
         if let Some(c) = &mut self.clusters {
             c.refresh_weights(self.scene, &self.hierarchy.elements, self.settings.seed);
         }
-        let shares = match shared {
-            true => source_shares(self.scene, &self.hierarchy, &self.links),
-            false => vec![Vec::new(); self.links.len()],
-        };
+        let plan = self.clusters.as_ref().map(|c| c.plan());
         let mut power = f64::NAN;
         for k in 0..self.settings.max_iterations.max(2) {
-            let mut gathered = self.gather(&shares);
-            if let Some(c) = &self.clusters {
-                c.gather(self.scene, &self.hierarchy.elements, &mut gathered);
+            let mut gathered = self.gather(shares);
+            if let (Some(c), Some(plan)) = (&self.clusters, &plan) {
+                c.gather(self.scene, &self.hierarchy.elements, plan, &mut gathered);
             }
             for (g, c) in gathered.iter_mut().zip(&self.correction) {
                 *g += *c;
@@ -128,14 +126,15 @@ impl Solver<'_> {
     /// H_e = Σ over e's links of F·V·B_source, in parallel over receivers,
     /// B_source weighted over a split source's children by the shares the
     /// link's rays saw ([`Link::seen_shares`]), else by `shares`
-    /// ([`source_shares`]).
-    pub(super) fn gather(&self, shares: &[Vec<(u32, Shares)>]) -> Vec<DVec3> {
+    /// ([`source_shares`]), when given.
+    pub(super) fn gather(&self, shares: Option<&[Vec<(u32, Shares)>]>) -> Vec<DVec3> {
         let h = &self.hierarchy;
         self.links
             .par_iter()
-            .zip(shares)
+            .enumerate()
             .with_min_len(64)
-            .map(|(ls, sh)| {
+            .map(|(r, ls)| {
+                let sh = shares.map_or(&[][..], |s| &s[r][..]);
                 let mean: DVec3 = ls
                     .iter()
                     .map(|l| {

@@ -14,6 +14,7 @@ use glam::DVec3;
 use crate::discontinuity::Segment;
 use crate::hierarchical::budget::{Budget, Coarsened};
 use crate::hierarchical::cluster::Clusters;
+use crate::hierarchical::gather::{Shares, source_shares};
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::{Evaluator, Inherited, Link};
 use crate::hierarchical::oracle::{Ends, RHO_FLOOR, Thresholds};
@@ -151,7 +152,9 @@ pub fn solve_hierarchical_guided(
         rounds.correction_passes.push(residual);
         times.correction += t.elapsed().as_secs_f64();
         let t = Instant::now();
-        rounds.converged = solver.iterate(&mut rounds.irradiance, &mut rounds.history, start, true);
+        let shares = Some(&rounds.shares[..]);
+        rounds.converged =
+            solver.iterate(&mut rounds.irradiance, &mut rounds.history, start, shares);
         times.solve += t.elapsed().as_secs_f64();
     }
     solver.finish(rounds, times)
@@ -207,6 +210,9 @@ pub(super) struct Rounds {
     /// Per defect-correction pass, the residual it found
     /// ([`Solver::correct`]).
     correction_passes: Vec<CorrectionPass>,
+    /// [`source_shares`] of the final links, for the solves after each
+    /// correction pass (which changes no link).
+    shares: Vec<Vec<(u32, Shares)>>,
 }
 
 impl<'a> Solver<'a> {
@@ -326,6 +332,7 @@ impl<'a> Solver<'a> {
             converged: false,
             rounds_exhausted: false,
             correction_passes: Vec::new(),
+            shares: Vec::new(),
         };
         let mut gradient_splits = 0;
         let mut resampled_links = std::mem::take(&mut self.resampled);
@@ -340,7 +347,11 @@ impl<'a> Solver<'a> {
             // The last solve on the final links weighs split sources by
             // their shares ([`super::gather::source_shares`]).
             shared = round + 1 == max_rounds || self.budget.is_some();
-            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, shared);
+            if shared {
+                out.shares = source_shares(self.scene, &self.hierarchy, &self.links);
+            }
+            let shares = shared.then_some(&out.shares[..]);
+            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, shares);
             times.solve += t.elapsed().as_secs_f64();
             out.rounds.push(Round {
                 round,
@@ -377,7 +388,9 @@ impl<'a> Solver<'a> {
             // Refinement changed nothing: once more on these links, with
             // shares (warm-started: a few iterations).
             let t = Instant::now();
-            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, true);
+            out.shares = source_shares(self.scene, &self.hierarchy, &self.links);
+            let shares = Some(&out.shares[..]);
+            out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, shares);
             times.solve += t.elapsed().as_secs_f64();
         }
         out

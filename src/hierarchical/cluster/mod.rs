@@ -47,6 +47,7 @@ mod tree;
 pub use link::{CLUSTER_RAYS, ClusterLink, Evaluation, RETRY_RAYS};
 pub use lobes::{Radiance, lobes, normal_lobes};
 pub use oracle::Step;
+pub use transport::Plan;
 pub use tree::{Cluster, ClusterTree};
 
 use glam::DVec3;

@@ -19,6 +19,26 @@ use crate::scene::Scene;
 
 /// A patch root's exposed radiosity and exposed fraction: what its
 /// cluster radiates and over how much of its area.
+/// One link as the solve's gather reads it ([`Clusters::plan`]).
+#[derive(Clone, Copy, Debug)]
+struct Term {
+    source: Node,
+    /// Unit direction from the receiver's centre to the source's.
+    direction: [f32; 3],
+    /// Transfer times the source weight, per channel (m²).
+    carry: [f32; 3],
+}
+
+/// The cluster links laid out for the solve's gathers: the terms of
+/// receiver i (clusters first, then patches) are
+/// `terms[start[i]..start[i + 1]]`. Valid until the links or their
+/// weights change.
+#[derive(Clone, Debug, Default)]
+pub struct Plan {
+    start: Vec<u32>,
+    terms: Vec<Term>,
+}
+
 pub(super) fn exposed(root: &Element) -> (DVec3, f64) {
     (root.exposed_radiosity, f64::from(root.exposure))
 }
@@ -61,38 +81,27 @@ impl Clusters {
     }
 
     /// Adds the irradiance the cluster links deliver to each patch to
-    /// `gathered[patch]`: a link (into receiver r, along unit direction d
-    /// from r to its source) delivers its transfer times `carried(r, link,
-    /// d)`, the radiosity it carries; a patch takes that over its area; a
-    /// cluster shares it by lobes, per unit of exposed projected area, and
-    /// pushes that down the tree, each patch taking its share by its own
-    /// normal and exposure `exposure(p)`.
-    pub fn gather_with(
+    /// `gathered[patch]`. `incoming(r, take)` calls `take(d, power)` for
+    /// each link gathered by receiver `r`, with d the unit direction from
+    /// `r` to the link's source and power what the link carries. A patch
+    /// takes that over its area; a cluster shares it by lobes, per unit of
+    /// exposed projected area, and pushes that down the tree, each patch
+    /// taking its share by its own normal and exposure `exposure(p)`.
+    fn distribute(
         &self,
         scene: &Scene,
         exposure: impl Fn(usize) -> f64 + Sync,
-        carried: impl Fn(Node, &ClusterLink, DVec3) -> DVec3 + Sync,
+        incoming: impl Fn(Node, &mut dyn FnMut(DVec3, DVec3)) + Sync,
         gathered: &mut [DVec3],
     ) {
         let t = &self.tree;
         let radiance = &self.radiance;
-        // (direction, power) of each link gathered by `r`.
-        let incoming = |r: Node, ls: &[ClusterLink]| -> Vec<(DVec3, DVec3)> {
-            ls.iter()
-                .map(|l| {
-                    let d = (t.centre(l.source()) - t.centre(r)).normalize_or_zero();
-                    (d, carried(r, l, d) * f64::from(l.transfer))
-                })
-                .collect()
-        };
-        let mut down: Vec<[DVec3; 6]> = self
-            .to_cluster
-            .par_iter()
-            .enumerate()
+        let mut down: Vec<[DVec3; 6]> = (0..t.len())
+            .into_par_iter()
             .with_min_len(64)
-            .map(|(c, ls)| {
+            .map(|c| {
                 let mut acc = [DVec3::ZERO; 6];
-                for (d, power) in incoming(Node::Cluster(c as u32), ls) {
+                incoming(Node::Cluster(c as u32), &mut |d, power| {
                     let w = lobes(d);
                     let area = dot(&radiance.area[c], &w);
                     if area > 0.0 {
@@ -100,7 +109,7 @@ impl Clusters {
                             *a += power * (w / area);
                         }
                     }
-                }
+                });
                 acc
             })
             .collect();
@@ -121,16 +130,12 @@ impl Clusters {
                 }
             }
         }
-        let direct: Vec<DVec3> = self
-            .to_patch
-            .par_iter()
-            .enumerate()
+        let direct: Vec<DVec3> = (0..self.to_patch.len())
+            .into_par_iter()
             .with_min_len(256)
-            .map(|(p, ls)| {
-                let power: DVec3 = incoming(Node::Patch(p as u32), ls)
-                    .into_iter()
-                    .map(|(_, e)| e)
-                    .sum();
+            .map(|p| {
+                let mut power = DVec3::ZERO;
+                incoming(Node::Patch(p as u32), &mut |_, e| power += e);
                 power / scene.patches[p].area
             })
             .collect();
@@ -139,16 +144,80 @@ impl Clusters {
         }
     }
 
-    /// [`Clusters::gather_with`] in the solve: a patch source carries its
-    /// exposed radiosity, a cluster source its radiance toward the
-    /// receiver times the link's source weight
-    /// ([`Clusters::refresh_weights`]).
-    pub fn gather(&self, scene: &Scene, elements: &[Element], gathered: &mut [DVec3]) {
-        let carried = |_: Node, l: &ClusterLink, d: DVec3| match l.source() {
-            Node::Patch(p) => exposed(&elements[p as usize]).0,
-            Node::Cluster(c) => self.radiance.toward(c as usize, -d) * l.weight(),
+    /// [`Clusters::distribute`] with each link carrying its transfer times
+    /// `carried(r, link, d)`, the radiosity it brings receiver r from
+    /// direction d.
+    fn gather_with(
+        &self,
+        scene: &Scene,
+        exposure: impl Fn(usize) -> f64 + Sync,
+        carried: impl Fn(Node, &ClusterLink, DVec3) -> DVec3 + Sync,
+        gathered: &mut [DVec3],
+    ) {
+        let t = &self.tree;
+        let incoming = |r: Node, take: &mut dyn FnMut(DVec3, DVec3)| {
+            for l in self.links(r) {
+                let d = (t.centre(l.source()) - t.centre(r)).normalize_or_zero();
+                take(d, carried(r, l, d) * f64::from(l.transfer));
+            }
         };
-        self.gather_with(scene, |p| exposed(&elements[p]).1, carried, gathered);
+        self.distribute(scene, exposure, incoming, gathered);
+    }
+
+    /// What the solve's gathers need of the links, which stay fixed while
+    /// it iterates: each link's direction and its transfer times its
+    /// source weight ([`Clusters::refresh_weights`]), so an iteration
+    /// reads them instead of recomputing them from the tree and the
+    /// encoded weights.
+    pub fn plan(&self) -> Plan {
+        let t = &self.tree;
+        let receivers = (0..t.len() as u32)
+            .map(Node::Cluster)
+            .chain((0..self.to_patch.len() as u32).map(Node::Patch));
+        let mut plan = Plan {
+            start: vec![0],
+            terms: Vec::with_capacity(self.link_count() as usize),
+        };
+        for r in receivers {
+            for l in self.links(r) {
+                let s = l.source();
+                let d = (t.centre(s) - t.centre(r)).normalize_or_zero();
+                let carry = match s {
+                    Node::Patch(_) => DVec3::ONE,
+                    Node::Cluster(_) => l.weight(),
+                } * f64::from(l.transfer);
+                plan.terms.push(Term {
+                    source: s,
+                    direction: d.as_vec3().to_array(),
+                    carry: carry.as_vec3().to_array(),
+                });
+            }
+            plan.start.push(plan.terms.len() as u32);
+        }
+        plan
+    }
+
+    /// The solve's gather ([`Clusters::distribute`]) by `plan`, made on
+    /// the current links and weights: a patch source carries its exposed
+    /// radiosity, a cluster source its radiance toward the receiver.
+    pub fn gather(&self, scene: &Scene, elements: &[Element], plan: &Plan, gathered: &mut [DVec3]) {
+        let clusters = self.tree.len();
+        let incoming = |r: Node, take: &mut dyn FnMut(DVec3, DVec3)| {
+            let i = match r {
+                Node::Cluster(c) => c as usize,
+                Node::Patch(p) => clusters + p as usize,
+            };
+            let terms = &plan.terms[plan.start[i] as usize..plan.start[i + 1] as usize];
+            for term in terms {
+                let d = glam::Vec3::from_array(term.direction).as_dvec3();
+                let b = match term.source {
+                    Node::Patch(p) => exposed(&elements[p as usize]).0,
+                    Node::Cluster(c) => self.radiance.toward(c as usize, -d),
+                };
+                take(d, b * glam::Vec3::from_array(term.carry).as_dvec3());
+            }
+        };
+        self.distribute(scene, |p| exposed(&elements[p]).1, incoming, gathered);
     }
 
     /// Irradiance per patch from the cluster links: all of it, and the part
