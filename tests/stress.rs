@@ -276,19 +276,20 @@ fn hierarchical_on_the_099_furnace_reports_that_it_did_not_converge() {
                 max_rounds: 1,
                 ..Accuracy::preview()
             },
-            max_iterations: 5,
+            max_iterations: 2,
             ..HierarchicalSettings::default()
         },
         ..quick(Method::Hierarchical)
     };
     let run = run_checked("furnace-099", &scene, &settings, ENERGY_TOL);
     // Every solve stops at the cap: the round's and each correction
-    // pass's, so the history holds five per solve.
+    // pass's, so the history holds two per solve. (Two: Anderson mixing
+    // settles a uniform furnace in four.)
     let conv = &run.report.convergence;
     assert!(!conv.converged);
-    assert_eq!(conv.rounds[0].iterations, 5);
+    assert_eq!(conv.rounds[0].iterations, 2);
     let passes = run.report.correction.as_ref().map_or(0, |c| c.passes.len());
-    assert_eq!(conv.iterations, 5 * (1 + passes));
+    assert_eq!(conv.iterations, 2 * (1 + passes));
 }
 
 /// Howell C-14 for the two unit squares of `shared-edge`.

@@ -67,9 +67,11 @@ pub struct SolveArgs {
     kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
     /// fraction of the largest. Shooting: stop when the unshot power is below
-    /// this fraction of the emitted power. Hierarchical: stop each round's
-    /// gathering when the total power Σ B·A changes by less than this
-    /// fraction.
+    /// this fraction of the emitted power. Hierarchical: stop the final
+    /// gathering when an iteration changes the reflected power, summed
+    /// element by element, by less than this fraction of the total power
+    /// Σ B·A (the rounds before it stop at 1e-4 or this, whichever is
+    /// looser).
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
     /// Iteration budget: sweeps (gathering, per round for hierarchical) or

@@ -145,7 +145,9 @@ pub struct HierarchicalSettings {
     pub visibility_rays: usize,
     /// Seed of every visibility ray.
     pub seed: u64,
-    /// Stop gathering when Σ B·A changes by less than this fraction.
+    /// Stop gathering when an iteration changes the reflected power, summed
+    /// element by element, by less than this fraction of Σ B·A (between
+    /// refinement rounds, by at most `gather::ROUND_TOLERANCE`).
     pub tolerance: f64,
     /// Gather + push-pull iterations per round at most.
     pub max_iterations: usize,
