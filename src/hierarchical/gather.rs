@@ -73,15 +73,15 @@ impl Solver<'_> {
         self.measured = h.len();
     }
 
-    /// Gather + push-pull until an iteration changes the reflected power,
-    /// element by element ([`Solver::reflected_change`]), by less than the
-    /// tolerance times Σ B·A (at least two iterations), with [`Tail`]'s
-    /// jumps on the way; appends to `history`. Returns whether the
-    /// tolerance was met. With `shares` ([`source_shares`] of the current
-    /// links), links weigh their split sources' children by them and the
-    /// tolerance is the settings' (the final solve); without, it is at
-    /// most [`ROUND_TOLERANCE`] (refinement rounds in between, which are
-    /// cheaper so).
+    /// Gather + push-pull, the inputs combined by [`Mixing`], until an
+    /// iteration would change the reflected power, element by element, by
+    /// less than the tolerance times Σ B·A (at least two iterations);
+    /// appends to `history`. Returns whether the tolerance was met. With
+    /// `shares` ([`source_shares`] of the current links), links weigh
+    /// their split sources' children by them and the tolerance is the
+    /// settings' (the final solve); without, the tolerance is at least
+    /// [`ROUND_TOLERANCE`] (the solves between refinement rounds, which
+    /// are cheaper so).
     pub(super) fn iterate(
         &mut self,
         irradiance: &mut [DVec3],

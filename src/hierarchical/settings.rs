@@ -147,7 +147,7 @@ pub struct HierarchicalSettings {
     pub seed: u64,
     /// Stop gathering when an iteration changes the reflected power, summed
     /// element by element, by less than this fraction of Σ B·A (between
-    /// refinement rounds, by at most `gather::ROUND_TOLERANCE`).
+    /// refinement rounds, by less than this or 1e-4, whichever is looser).
     pub tolerance: f64,
     /// Gather + push-pull iterations per round at most.
     pub max_iterations: usize,

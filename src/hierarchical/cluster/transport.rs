@@ -17,8 +17,6 @@ use super::{Clusters, Node};
 use crate::hierarchical::hierarchy::Element;
 use crate::scene::Scene;
 
-/// A patch root's exposed radiosity and exposed fraction: what its
-/// cluster radiates and over how much of its area.
 /// One link as the solve's gather reads it ([`Clusters::plan`]).
 #[derive(Clone, Copy, Debug)]
 struct Term {
@@ -39,6 +37,8 @@ pub struct Plan {
     terms: Vec<Term>,
 }
 
+/// A patch root's exposed radiosity and exposed fraction: what its
+/// cluster radiates and over how much of its area.
 pub(super) fn exposed(root: &Element) -> (DVec3, f64) {
     (root.exposed_radiosity, f64::from(root.exposure))
 }
