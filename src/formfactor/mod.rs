@@ -4,6 +4,7 @@
 //! Owns the kernels the solvers build on, one per file: point → polygon
 //! (Lambert's contour integral, [`point_polygon`]), polygon → polygon
 //! (adaptive quadrature of the exact inner integral, [`polygon_polygon`]),
+//! aligned rectangles in closed form ([`rectangles`]),
 //! area sampling ([`area_sampling`]), the hemicube ([`hemicube`]), and
 //! Howell's closed forms as yardsticks ([`closed_form`]). Argument order
 //! is always (receiver, source), matching F_ij: "i gathers from j".
@@ -19,6 +20,7 @@ pub mod closed_form;
 pub mod hemicube;
 pub mod point_polygon;
 pub mod polygon_polygon;
+pub mod rectangles;
 
 pub use area_sampling::form_factor_area_sampling;
 pub use point_polygon::form_factor_point_polygon;

@@ -17,8 +17,9 @@
 //! Form factor: F = Σ_k (A_k/A_r) F(x_k → source), x_k the centroids of the
 //! receiver's four virtual children (a 4-point midpoint rule of the exact
 //! inner integral, which is zero behind the source's plane), replaced by
-//! an adaptive quadrature when the points disagree by more than 10 %
-//! (`oracle::sharpen`); F_err = max − min of the point values at those
+//! the exact value when the points disagree by more than 10 %
+//! (`oracle::sharpen`: closed form for aligned rectangles, else adaptive
+//! quadrature); F_err = max − min of the point values at those
 //! centroids and at the receiver's corners (for elements far apart, where
 //! F is near linear over the receiver, twice the centroids' range
 //! instead). A source smaller than its receiver is also sampled at its own
@@ -41,6 +42,7 @@
 use glam::DVec3;
 
 use crate::formfactor::point_polygon::clip_to_half_space;
+use crate::formfactor::rectangles::aligned_rectangles;
 use crate::formfactor::{form_factor_point_polygon, form_factor_polygon_polygon_checked};
 use crate::hierarchical::hierarchy::{Element, ElementId, split_corners};
 use crate::sampling::{PolygonSampler, pair_stream, point_in_polygon, stratified};
@@ -345,7 +347,9 @@ pub struct Evaluator<'a> {
 impl Evaluator<'_> {
     /// The visible fraction and spread of (receiver `r`, source `s`) from
     /// `rays` rays independent of those [`evaluate_link`] casts, and the
-    /// rays cast. A link accepted because its own rays saw its source wholly
+    /// rays cast. For a pair whose evaluation cast rays: its shaft is not
+    /// clear, and is not asked again (an unobstructed link needs no fresh
+    /// reading). A link accepted because its own rays saw its source wholly
     /// hidden (anywhere) or wholly visible (inside a penumbra) keeps this
     /// value instead: refinement keeps the links whose rays read 0 and
     /// refines the others, so the deciding reading, kept, loses the light
@@ -353,9 +357,6 @@ impl Evaluator<'_> {
     /// where they read 1); and a link read as dark is dropped for good.
     pub fn fresh_visibility(&self, r: ElementId, s: ElementId, rays: usize) -> (Reading, u64) {
         let (re, se) = (&self.elements[r.index()], &self.elements[s.index()]);
-        if unobstructed(self.scene, re, se, self.bvh) {
-            return (Reading::CLEAR, 0);
-        }
         let mut rng = pair_stream(self.seed ^ FRESH_TAG, r.0, s.0);
         let rays = rays.clamp(1, 4 * MAX_QUARTER_RAYS);
         sample_visibility(
@@ -578,28 +579,15 @@ fn sample_visibility(
             return (Reading::CLEAR, probed);
         }
     }
-    // The source quarter each target lies in (the children a split gives
-    // it), for the shares of the rays that get through.
-    let kids = split_corners(s.shape, &s.corners);
-    let m = s.vertices().len();
-    let quarter_of: Vec<usize> = targets
-        .iter()
-        .map(|y| {
-            (0..4)
-                .min_by(|&a, &b| {
-                    let out = |k: usize| outside_polygon(&kids[k][..m], n_s, *y);
-                    out(a).total_cmp(&out(b))
-                })
-                .unwrap_or(0)
-        })
-        .collect();
     // Per receiver quarter, the kernel-weighted visibility sums: V (their
     // ratio over all quarters) is what scales the unoccluded form factor.
-    let mut through = [0.0; 4];
+    // The rays that got through are kept (target, kernel) for the shares
+    // of the source's quarters, needed only when the reading is partial.
+    let mut passed: Vec<(usize, f64)> = Vec::new();
     let sums = quarters.map(|quarter| {
         let sampler = PolygonSampler::new(&quarter[..n]);
         let (mut total, mut seen) = (0.0, 0.0);
-        for (a, (y, &q)) in from.iter().zip(targets.iter().zip(&quarter_of)) {
+        for (j, (a, y)) in from.iter().zip(&targets).enumerate() {
             let x = sampler.point(*a);
             let d = *y - x;
             let kernel = d.dot(n_r) * -d.dot(n_s) / d.length_squared().powi(2);
@@ -609,7 +597,7 @@ fn sample_visibility(
             total += kernel;
             if bvh.visible(x, *y) {
                 seen += kernel;
-                through[q] += kernel;
+                passed.push((j, kernel));
             }
         }
         (total, seen)
@@ -640,9 +628,35 @@ fn sample_visibility(
     let reading = Reading {
         visibility: v,
         spread,
-        seen: partial.then_some(through),
+        seen: partial.then(|| source_shares(s, n_s, &targets, &passed)),
     };
     (reading, probed + total as u64)
+}
+
+/// The kernel weight of the rays that got through (`passed`: target index
+/// and kernel, in the order cast) per quarter of the source `s` (the
+/// children a split gives it) that their targets lie in.
+fn source_shares(s: &Element, n_s: DVec3, targets: &[DVec3], passed: &[(usize, f64)]) -> [f64; 4] {
+    let kids = split_corners(s.shape, &s.corners);
+    let m = s.vertices().len();
+    let mut quarter_of: Vec<Option<usize>> = vec![None; targets.len()];
+    let mut through = [0.0; 4];
+    for &(j, kernel) in passed {
+        let q = *quarter_of[j].get_or_insert_with(|| {
+            // The quarter the target is least outside of (the first of
+            // equals).
+            let out = [0, 1, 2, 3].map(|k| outside_polygon(&kids[k][..m], n_s, targets[j]));
+            (1..4).fold(0, |best, k| {
+                if out[k].total_cmp(&out[best]).is_lt() {
+                    k
+                } else {
+                    best
+                }
+            })
+        });
+        through[q] += kernel;
+    }
+    through
 }
 
 /// The kernel-weighted visible fraction of `s` from `r` by `rays` rays
@@ -688,13 +702,15 @@ fn facing_visibility(
 /// Integrand evaluations [`exact_form_factor`] may spend on one link.
 const SHARPEN_EVALUATIONS: usize = 600;
 
-/// The unoccluded form factor receiver → source by adaptive quadrature of
-/// the exact inner integral (zero behind the far element's plane), to
-/// `tolerance`, in [0, 1], with `guess` the midpoint rule's value; `None`
-/// when the quadrature fails. The outer integral runs over the element of
-/// smaller extent (F_rs = (A_s / A_r) F_sr): its points see the other one
-/// smoothly, where the other one's points may miss a small source's light
-/// altogether (a long strip beside a small patch).
+/// The unoccluded form factor receiver → source (zero behind the far
+/// element's plane), in [0, 1]: in closed form for aligned rectangles
+/// facing each other or perpendicular ([`aligned_rectangles`]; walls,
+/// floors and their elements), else by adaptive quadrature of the exact
+/// inner integral to `tolerance`, with `guess` the midpoint rule's value;
+/// `None` when the quadrature fails. The outer integral runs over the
+/// element of smaller extent (F_rs = (A_s / A_r) F_sr): its points see the
+/// other one smoothly, where the other one's points may miss a small
+/// source's light altogether (a long strip beside a small patch).
 pub(crate) fn exact_form_factor(
     receiver: &Element,
     receiver_normal: DVec3,
@@ -703,6 +719,14 @@ pub(crate) fn exact_form_factor(
     tolerance: f64,
     guess: Option<f64>,
 ) -> Option<f64> {
+    if let Some(f) = aligned_rectangles(
+        receiver.vertices(),
+        receiver_normal,
+        source.vertices(),
+        source_normal,
+    ) {
+        return Some(f);
+    }
     let (near, far, far_normal, scale) = if radius(source) < radius(receiver) {
         (
             source,

@@ -205,6 +205,7 @@ impl Solver<'_> {
                         // fresh reading does the same one round on.
                         let partial = link.partly_visible() || link.spread() > 0.0;
                         let fresh = link.rays() >= t.max_rays()
+                            && !link.unobstructed()
                             && (partial
                                 || link.visibility() == 0.0
                                 || p.inherited == Inherited::PartlyVisible);
