@@ -44,9 +44,11 @@ fn run(scene: &Scene, settings: &SolveSettings) -> SolveRun {
     let p = &run.report.power;
     for c in 0..3 {
         assert!(p.emitted[c] > 0.0 && p.absorbed[c].is_finite(), "{p:?}");
-        // The defect correction's rays are unbiased, not exact: in this
-        // closed box they leave the balance within 10⁻³ (measured 6·10⁻⁴).
-        assert!(p.absorbed[c] <= p.emitted[c] * (1.0 + 1e-3), "{p:?}");
+        // The defect correction's rays are unbiased, not exact: in these
+        // closed scenes they leave the balance within 2·10⁻³ (the sealed
+        // rooms at 16 MiB, seeds 0–3: 1.0013, 1.0004, 1.0009, 1.0013 of
+        // the emitted; 0.9996 without the correction).
+        assert!(p.absorbed[c] <= p.emitted[c] * (1.0 + 2e-3), "{p:?}");
     }
     let warned = run.report.warnings.iter().find(|w| w.contains("budget"));
     match &run.report.budget {

@@ -166,7 +166,7 @@ pub struct HierarchicalArgs {
           value_parser = clap::value_parser!(u32).range(0..=8))]
     pub correction_passes: u32,
 
-    /// Rays per patch of each correction pass, at least (and 16 per leaf)
+    /// Rays per patch of each correction pass (a patch smaller than the mean: a share by its area; any patch: 16 per leaf)
     #[arg(long, default_value_t = DEFAULT_CORRECTION_RAYS as u64,
           value_parser = clap::value_parser!(u64).range(1..=65536))]
     pub correction_rays: u64,

@@ -19,8 +19,10 @@
 //! value is the reflected part of the exposed radiosity of the leaf it
 //! hits. Emission is left out on both sides: direct light stays with the
 //! links (and the final gather at the vertices), where light sampling
-//! resolves small emitters that cosine rays would hardly hit. A patch gets
-//! at least `correction_rays` rays and 16 per leaf of its quadtree.
+//! resolves small emitters that cosine rays would hardly hit. A patch of
+//! at least the mean patch area gets `correction_rays` rays, a smaller
+//! one a share in proportion to its area (at least 16), and any patch 16
+//! per leaf of its quadtree ([`rays_for`]).
 //!
 //! Noise. A few hundred rays know a patch's gather to several per cent,
 //! more than the residual itself (1–3 %), and fed back as it is the noise
@@ -89,6 +91,26 @@ use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 /// detail, or lit unevenly, and its mean needs more rays to be known.
 const RAYS_PER_LEAF: usize = 16;
 const MAX_RAYS: usize = 1 << 16;
+/// Fewest rays a patch smaller than the mean gets: enough for a variance.
+const MIN_RAYS: usize = 16;
+
+/// Rays for a patch of area `area` when a patch of the mean area
+/// `mean_area` or larger gets `rays`: in proportion to the area below the
+/// mean, at least [`MIN_RAYS`] and [`RAYS_PER_LEAF`] per leaf, at most
+/// [`MAX_RAYS`]. A pool's variance is Σ a² σ² / n over its patches, least
+/// for a given number of rays when n ∝ a σ: a small patch's rays buy
+/// little, and small patches are pooled.
+fn rays_for(rays: usize, area: f64, mean_area: f64, leaves: usize) -> usize {
+    let share = if mean_area > 0.0 {
+        (area / mean_area).min(1.0)
+    } else {
+        1.0
+    };
+    ((rays as f64 * share).ceil() as usize)
+        .max(MIN_RAYS)
+        .max(RAYS_PER_LEAF * leaves)
+        .min(MAX_RAYS)
+}
 
 /// Mixed into the seed of the correction's rays.
 const CORRECTION_TAG: u64 = 0x636f_7272_6563_7421;
@@ -114,6 +136,8 @@ impl Solver<'_> {
             leaves[e.patch as usize] += 1;
         }
         let second = self.second_moments();
+        let mean_area =
+            scene.patches.iter().map(|p| p.area).sum::<f64>() / scene.patches.len().max(1) as f64;
         // Per patch: what its links bring from reflection, and what the
         // rays find (with the variance of that mean).
         let samples: Vec<(Sample, usize, usize)> = (0..scene.patches.len())
@@ -126,7 +150,7 @@ impl Solver<'_> {
                 if exposure <= 0.0 || patch.reflectance.max_element() <= 0.0 {
                     return (Sample::default(), 0, 0);
                 }
-                let rays = rays.max(RAYS_PER_LEAF * leaves[p]).min(MAX_RAYS);
+                let rays = rays_for(rays, patch.area, mean_area, leaves[p]);
                 let g = gather_reflected(scene, self.bvh, h, &faces, p, rays, seed);
                 let counted = (g.rays - g.back_faces) as f64;
                 let sample = match g.mean {
@@ -561,6 +585,22 @@ mod tests {
                 variance: (3.0 * error).powi(2),
             })
             .collect()
+    }
+
+    #[test]
+    fn rays_follow_the_area_below_the_mean_and_the_leaves_above_it() {
+        // At or above the mean area: the full count, whatever the size.
+        assert_eq!(rays_for(1024, 1.0, 1.0, 1), 1024);
+        assert_eq!(rays_for(1024, 50.0, 1.0, 1), 1024);
+        // Below it: in proportion, rounded up, at least MIN_RAYS.
+        assert_eq!(rays_for(1024, 0.25, 1.0, 1), 256);
+        assert_eq!(rays_for(1024, 0.3, 1.0, 1), 308);
+        assert_eq!(rays_for(1024, 1e-3, 1.0, 1), MIN_RAYS);
+        // Leaves ask for more, up to MAX_RAYS.
+        assert_eq!(rays_for(1024, 1e-3, 1.0, 100), 100 * RAYS_PER_LEAF);
+        assert_eq!(rays_for(1024, 1.0, 1.0, 1 << 20), MAX_RAYS);
+        // No mean (no area at all): the full count.
+        assert_eq!(rays_for(64, 0.0, 0.0, 1), 64);
     }
 
     #[test]

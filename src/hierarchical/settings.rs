@@ -172,7 +172,8 @@ pub struct HierarchicalSettings {
     /// Passes of defect correction after the last round
     /// (`hierarchical::correction`): 0 solves the links alone.
     pub correction_passes: u32,
-    /// Rays per patch of each correction pass, at least.
+    /// Rays per patch of each correction pass (a patch smaller than the
+    /// mean a share by its area; any patch 16 per leaf).
     pub correction_rays: usize,
     /// A residual share is used once it is significant (three standard
     /// errors) or known to this fraction of the links' reflected light; a
