@@ -187,7 +187,8 @@ pub struct Report {
     pub mean_row_sum: f64,
     /// The view of the main render.
     pub view: Option<View>,
-    /// Display exposure used for `render.png` and `COLOR_0` of the bake.
+    /// Display exposure of `render.png` and the bake's `COLOR_0`: the
+    /// solution's own (`output::png::solution_exposure`) or `--exposure`.
     pub exposure: f32,
     /// Worker threads.
     pub threads: usize,

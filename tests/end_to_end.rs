@@ -362,3 +362,106 @@ fn formfactors_command_matches_closed_forms() {
         }
     }
 }
+
+/// The bake's exposure is the solution's: three render sizes and a second
+/// camera give byte-identical bakes, and `--exposure` sets it.
+#[test]
+fn the_bake_is_the_same_whatever_the_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = scene_arg("cornell-box.gltf");
+    let solve = |out: &str, view: &[&str]| {
+        let mut args = vec!["solve", &scene_path, "-q", "--accuracy", "preview"];
+        args.extend_from_slice(&["--spp", "1", "-o", out]);
+        args.extend_from_slice(view);
+        let run = nusselt(&args, dir.path());
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let res = dir.path().join(out);
+        let bake = (
+            fs::read(res.join("baked.gltf")).unwrap(),
+            fs::read(res.join("baked.bin")).unwrap(),
+        );
+        (bake, read_report(&res).exposure)
+    };
+    let (first, exposure) = solve("a", &["--width", "16", "--height", "16"]);
+    assert!(exposure.is_finite() && exposure > 0.0, "{exposure}");
+    for (out, view) in [
+        ("b", &["--width", "96", "--height", "64"][..]),
+        ("c", &["--width", "200", "--height", "150"][..]),
+        (
+            "d",
+            &["--width", "64", "--height", "64", "--eye", "0.1,0.1,0.1"][..],
+        ),
+    ] {
+        let (bake, e) = solve(out, view);
+        assert_eq!(e, exposure, "{view:?}");
+        assert!(bake == first, "{view:?}: the bake differs");
+    }
+    // `--glb`: the same document and buffer in one binary file.
+    let run = nusselt(
+        &[
+            "solve",
+            &scene_path,
+            "-q",
+            "--accuracy",
+            "preview",
+            "--spp",
+            "1",
+            "-o",
+            "g",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--glb",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let g = dir.path().join("g");
+    assert!(!g.join("baked.gltf").exists() && !g.join("baked.bin").exists());
+    let (doc, buffers, _) = gltf::import(g.join("baked.glb")).unwrap();
+    let (doc_a, buffers_a, _) = gltf::import(dir.path().join("a/baked.gltf")).unwrap();
+    assert_eq!(buffers[0].len(), buffers_a[0].len());
+    assert!(buffers[0].0 == buffers_a[0].0, "the glb's buffer differs");
+    assert_eq!(doc.accessors().count(), doc_a.accessors().count());
+    assert!(matches!(
+        doc.buffers().next().unwrap().source(),
+        gltf::buffer::Source::Bin
+    ));
+    assert_eq!(
+        doc.as_json().asset.extras.as_ref().map(|e| e.get()),
+        doc_a.as_json().asset.extras.as_ref().map(|e| e.get())
+    );
+
+    // Given, it is used as it is; out of range, a one-line error.
+    let (bake, e) = solve(
+        "e",
+        &["--width", "16", "--height", "16", "--exposure", "2.5"],
+    );
+    assert_eq!(e, 2.5);
+    assert!(bake != first);
+    for bad in [
+        "--exposure=0",
+        "--exposure=-1",
+        "--exposure=inf",
+        "--exposure=NaN",
+    ] {
+        let run = nusselt(&["solve", &scene_path, "-q", "-o", "f", bad], dir.path());
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{bad}: {err}");
+        assert!(
+            err.starts_with("error:") && err.contains("--exposure"),
+            "{err}"
+        );
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!dir.path().join("f").exists());
+    }
+}

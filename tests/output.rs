@@ -1095,3 +1095,33 @@ fn sample_output_folder_is_complete() {
         "temporary files left: {names:?}"
     );
 }
+
+#[test]
+fn solution_exposure_is_the_area_weighted_log_average() {
+    // Two squares, the second four times the area and four times brighter
+    // in luminance: log-average = exp((1 ln 1 + 4 ln 4) / 5) of B/π = 1.
+    let square = |mesh: &mut OutputMesh, x: f32, side: f32, b: f32| {
+        let base = mesh.positions.len() as u32;
+        for (u, v) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+            mesh.positions.push(Vec3::new(x + u * side, v * side, 0.0));
+            mesh.normals.push(Vec3::Z);
+            mesh.patch.push(0);
+            mesh.radiosity.push(Vec3::splat(b * PI));
+        }
+        mesh.triangles.push([base, base + 1, base + 2]);
+        mesh.triangles.push([base, base + 2, base + 3]);
+    };
+    let mut mesh = OutputMesh::default();
+    square(&mut mesh, 0.0, 1.0, 1.0);
+    square(&mut mesh, 5.0, 2.0, 4.0);
+    let mean = (4.0f64.ln() * 4.0 / 5.0).exp() as f32;
+    let e = out_png::solution_exposure(&mesh);
+    assert!((e * mean - out_png::SOLUTION_KEY).abs() < 1e-5, "{e}");
+    // Unlit vertices do not count; a dark or empty solution gets 1.
+    square(&mut mesh, 20.0, 3.0, 0.0);
+    assert!((out_png::solution_exposure(&mesh) - e).abs() < 1e-6);
+    assert_eq!(out_png::solution_exposure(&OutputMesh::default()), 1.0);
+    let mut dark = OutputMesh::default();
+    square(&mut dark, 0.0, 1.0, 0.0);
+    assert_eq!(out_png::solution_exposure(&dark), 1.0);
+}

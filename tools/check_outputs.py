@@ -213,8 +213,12 @@ def main(argv):
     try:
         require(outdir.is_dir(), f"{outdir} is not a folder")
         solution = check_solution(outdir / "solution.exr")
-        check_baked(outdir / "baked.gltf", solution)
-        run_validator(outdir / "baked.gltf")
+        if (outdir / "baked.glb").exists():
+            # `--glb`: the same document in one file; the validator reads it.
+            run_validator(outdir / "baked.glb")
+        else:
+            check_baked(outdir / "baked.gltf", solution)
+            run_validator(outdir / "baked.gltf")
     except CheckError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -1,9 +1,9 @@
 //! `nusselt render`: a new view of an earlier solution, without solving
 //! again.
 //!
-//! Invariant: with no view flags, the view and exposure are the solve's
-//! (from the `report.json` beside the solution), so the image matches the
-//! solve's own render.
+//! Invariant: with no view flags, the view is the solve's (from the
+//! `report.json` beside the solution), so the image matches the solve's
+//! own render; the exposure is the solve's from any view.
 
 use std::path::PathBuf;
 
@@ -30,6 +30,10 @@ pub struct RenderArgs {
     /// Also write a tone-mapped PNG here.
     #[arg(long)]
     png: Option<PathBuf>,
+    /// Display exposure of the PNG (default: the solve's, from the report
+    /// beside the solution, else the solution's own).
+    #[arg(long)]
+    exposure: Option<f32>,
     #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
@@ -39,6 +43,7 @@ pub struct RenderArgs {
 /// Runs `nusselt render`.
 pub fn run(args: RenderArgs) -> Result<()> {
     init_threads(args.common.threads)?;
+    super::checked(pipeline::check_exposure(args.exposure))?;
     let progress = Progress::new(!args.common.quiet);
     let mesh = nusselt::output::exr::read_solution(&args.solution)?;
     mesh.validate()
@@ -79,9 +84,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
     nusselt::output::write_atomic(&args.output, &nusselt::output::exr::encode_image(&frame)?)?;
     if let Some(png) = &args.png {
-        let exposure = report
-            .map(|r| r.exposure)
-            .unwrap_or_else(|| pipeline::frame_exposure(&frame));
+        let exposure = args
+            .exposure
+            .or(report.map(|r| r.exposure))
+            .unwrap_or_else(|| nusselt::output::png::solution_exposure(&mesh));
         nusselt::output::write_atomic(png, &nusselt::output::png::encode_png(&frame, exposure)?)?;
     }
     Ok(())

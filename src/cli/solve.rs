@@ -57,6 +57,14 @@ pub struct SolveArgs {
     /// clean).
     #[arg(long)]
     wireframe: bool,
+    /// Display exposure of render.png and the bake's COLOR_0 (default: the
+    /// solution's own, the same for any view; the report records it).
+    #[arg(long)]
+    exposure: Option<f32>,
+    /// Write the bake as one binary glTF, baked.glb, instead of
+    /// baked.gltf + baked.bin.
+    #[arg(long)]
+    glb: bool,
     /// Hierarchical: refine only as much as the view (the scene's camera or
     /// the view flags) needs: link errors count by the importance of their
     /// receiver, seen directly or reflecting toward what is seen
@@ -133,6 +141,8 @@ impl SolveArgs {
             snapshots: self.snapshots.clone(),
             wireframe: self.wireframe,
             importance: self.importance,
+            exposure: self.exposure,
+            glb: self.glb,
         };
         // Both methods' parts, whichever runs: a bad flag is an error even
         // where it does not apply.

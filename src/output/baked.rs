@@ -1,5 +1,7 @@
-//! `baked.gltf` + `baked.bin`: the output mesh with its radiosity baked into
-//! vertex colours. The only writer of glTF (through `gltf::json`).
+//! `baked.gltf` + `baked.bin` (or, the same document and buffer in one
+//! binary glTF, `baked.glb`): the output mesh with its radiosity baked into
+//! vertex colours. The only writer of glTF (through `gltf::json` and
+//! `gltf::Glb`).
 //!
 //! Layout:
 //!
@@ -60,6 +62,38 @@ pub fn encode_baked_gltf(
     bin_name: &str,
 ) -> Result<(Vec<u8>, Vec<u8>)> {
     check(mesh, exposure, bin_name)?;
+    let (root, bin) = baked_root(mesh, exposure, Some(bin_name))?;
+    let mut gltf_bytes = root.to_vec_pretty().map_err(|e| Error::encode(BAKED, e))?;
+    gltf_bytes.push(b'\n');
+    Ok((gltf_bytes, bin))
+}
+
+/// Encodes `mesh` as one binary glTF (`baked.glb`): the same document as
+/// [`encode_baked_gltf`]'s, its buffer the GLB's binary chunk. Fails as
+/// that does.
+pub fn encode_baked_glb(mesh: &OutputMesh, exposure: f32) -> Result<Vec<u8>> {
+    check(mesh, exposure, "baked.bin")?;
+    let (root, bin) = baked_root(mesh, exposure, None)?;
+    let json = root.to_vec().map_err(|e| Error::encode(BAKED, e))?;
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: 0, // computed by the writer
+        },
+        json: json.into(),
+        bin: Some(bin.into()),
+    };
+    glb.to_vec().map_err(|e| Error::encode(BAKED, e))
+}
+
+/// The bake's document and buffer; the buffer is the file `bin_name`, or
+/// with `None` the GLB's binary chunk.
+fn baked_root(
+    mesh: &OutputMesh,
+    exposure: f32,
+    bin_name: Option<&str>,
+) -> Result<(json::Root, Vec<u8>)> {
     let colors: Vec<Vec3> = mesh
         .radiosity
         .iter()
@@ -144,9 +178,7 @@ pub fn encode_baked_gltf(
         ..Default::default()
     };
 
-    let mut gltf_bytes = root.to_vec_pretty().map_err(|e| Error::encode(BAKED, e))?;
-    gltf_bytes.push(b'\n');
-    Ok((gltf_bytes, bin))
+    Ok((root, bin))
 }
 
 /// Builds the JSON root and the binary buffer together: each accessor gets
@@ -158,12 +190,12 @@ struct Packer {
 }
 
 impl Packer {
-    fn new(bin_name: &str) -> Packer {
+    fn new(bin_name: Option<&str>) -> Packer {
         let mut root = json::Root::default();
         let buffer = root.push(json::Buffer {
             byte_length: USize64(0), // set by `finish`
             name: None,
-            uri: Some(bin_name.to_string()),
+            uri: bin_name.map(str::to_string),
             extensions: None,
             extras: None,
         });

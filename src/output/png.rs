@@ -1,5 +1,8 @@
-//! 8-bit sRGB PNG encoding of linear images, with the exposure rule used for
-//! every display output. The only user of the `image` crate's PNG encoder.
+//! 8-bit sRGB PNG encoding of linear images, with the exposure rules used
+//! for every display output: a solution's own ([`solution_exposure`], for
+//! a solve's PNGs and bake) and an image's ([`auto_exposure`], for a
+//! reference without a solution). The only user of the `image` crate's PNG
+//! encoder.
 //!
 //! Tone map (documented for users): each channel of a pixel's radiance L is
 //! scaled by the exposure, clamped to [0, 1], passed through the sRGB
@@ -18,10 +21,13 @@
 //!
 //! Invariant: row 0 of the [`Frame`] is the top row of the PNG.
 
+use std::f32::consts::PI;
+
 use image::ImageEncoder;
 use image::codecs::png::PngEncoder;
 
 use crate::error::{Error, Result};
+use crate::mesh::OutputMesh;
 use crate::render::frame::Frame;
 pub use crate::render::frame::luminance;
 
@@ -49,6 +55,49 @@ pub fn auto_exposure(luminances: impl Iterator<Item = f32>) -> f32 {
     let (_, p, _) = positive.select_nth_unstable_by(index, f32::total_cmp);
     let exposure = AUTO_EXPOSURE_TARGET / *p;
     if exposure.is_finite() { exposure } else { 1.0 }
+}
+
+/// The display value [`solution_exposure`] gives to a solution's
+/// log-average vertex luminance.
+pub const SOLUTION_KEY: f32 = 0.25;
+
+/// The display exposure of a solution, whatever view shows it:
+/// [`SOLUTION_KEY`] / L̄, with L̄ the log-average (geometric mean) of the
+/// positive, finite vertex luminances of B / π, each vertex weighted by a
+/// third of the area of its triangles.
+///
+/// So the surfaces that make up most of the scene sit in the middle of
+/// the display range and the few much brighter ones (an emitter, a sunlit
+/// light well) clip. It depends on the per-vertex solution only: the same
+/// solution gives the same exposure at any render size and from any
+/// camera. Without any lit vertex, or when the result would not be finite,
+/// the exposure is 1.
+pub fn solution_exposure(mesh: &OutputMesh) -> f32 {
+    let mut weight = vec![0.0f64; mesh.vertex_count()];
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize].as_dvec3());
+        let third = (b - a).cross(c - a).length() / 6.0;
+        for &i in t {
+            weight[i as usize] += third;
+        }
+    }
+    let (mut sum, mut total) = (0.0f64, 0.0f64);
+    for (b, &w) in mesh.radiosity.iter().zip(&weight) {
+        let l = f64::from(luminance((*b / PI).to_array()));
+        if l.is_finite() && l > 0.0 && w > 0.0 {
+            sum += w * l.ln();
+            total += w;
+        }
+    }
+    if !(total > 0.0) {
+        return 1.0;
+    }
+    let exposure = SOLUTION_KEY / (sum / total).exp() as f32;
+    if exposure.is_finite() && exposure > 0.0 {
+        exposure
+    } else {
+        1.0
+    }
 }
 
 /// The sRGB transfer function applied to a display value in [0, 1].

@@ -116,6 +116,11 @@ pub struct SolveSettings {
     /// Hierarchical: weigh refinement by the importance of the solve's view
     /// ([`view_importance`]).
     pub importance: bool,
+    /// The display exposure of the PNGs and the bake's `COLOR_0`; `None`:
+    /// the solution's own ([`output::png::solution_exposure`]).
+    pub exposure: Option<f32>,
+    /// Bake into one `baked.glb` ([`SolveRun::glb`]).
+    pub glb: bool,
 }
 
 impl SolveSettings {
@@ -123,6 +128,7 @@ impl SolveSettings {
     /// convergence settings) and that the options fit the method. The
     /// error names the command-line option.
     pub fn validate(&self) -> Result<()> {
+        check_exposure(self.exposure)?;
         match self.method {
             Method::Hierarchical => {
                 self.hierarchical.validate()?;
@@ -164,6 +170,8 @@ impl Default for SolveSettings {
             snapshots: Vec::new(),
             wireframe: false,
             importance: false,
+            exposure: None,
+            glb: false,
         }
     }
 }
@@ -183,6 +191,9 @@ pub struct SolveRun {
     pub snapshots: Vec<(usize, Frame)>,
     /// Everything `report.json` says.
     pub report: Report,
+    /// Write the bake as one `baked.glb` instead of `baked.gltf` +
+    /// `baked.bin`.
+    pub glb: bool,
 }
 
 fn secs(t: Instant) -> f64 {
@@ -249,7 +260,9 @@ fn finish(
         .wireframe
         .then(|| wireframe::wireframe_mask(&mesh, &view));
     report.times.render += secs(t);
-    report.exposure = frame_exposure(&frame);
+    report.exposure = settings
+        .exposure
+        .unwrap_or_else(|| output::png::solution_exposure(&mesh));
     report.view = Some(view);
     report.times.total = secs(start);
     SolveRun {
@@ -258,18 +271,30 @@ fn finish(
         wireframe: overlay,
         snapshots,
         report,
+        glb: settings.glb,
     }
 }
 
-/// The display exposure of a run, chosen from its main render's pixels (a
-/// small bright emitter clips, the rest is well exposed), and then shared by
-/// `render.png`, the snapshots, the bake's `COLOR_0` and later
-/// `nusselt render --png` of the same solution.
+/// `--exposure`: positive and finite when given.
+pub fn check_exposure(exposure: Option<f32>) -> Result<()> {
+    match exposure {
+        Some(e) if !(e > 0.0 && e.is_finite()) => Err(Error::Setting(format!(
+            "--exposure {e} must be positive and finite"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// The display exposure of an image without a solution (a reference),
+/// chosen from its pixels: a small bright emitter clips, the rest is well
+/// exposed. A solve's PNGs and bake use the solution's own
+/// ([`output::png::solution_exposure`]) or `--exposure`.
 pub fn frame_exposure(frame: &Frame) -> f32 {
     output::png::auto_exposure(frame.pixels.iter().map(|p| output::png::luminance(*p)))
 }
 
-/// Writes the five outputs of the contract, and any snapshots, into `dir`
+/// Writes the five outputs of the contract (the bake as `baked.gltf` +
+/// `baked.bin`, or `baked.glb`), and any snapshots, into `dir`
 /// (staged, then renamed together). Fills `report.times.write` before
 /// writing the report.
 pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
@@ -277,9 +302,16 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     let mut set = OutputSet::create(dir)?;
     let exposure = run.report.exposure;
     set.stage("solution.exr", &output::exr::encode_solution(&run.mesh)?)?;
-    let (gltf, bin) = output::baked::encode_baked_gltf(&run.mesh, exposure, "baked.bin")?;
-    set.stage("baked.bin", &bin)?;
-    set.stage("baked.gltf", &gltf)?;
+    if run.glb {
+        set.stage(
+            "baked.glb",
+            &output::baked::encode_baked_glb(&run.mesh, exposure)?,
+        )?;
+    } else {
+        let (gltf, bin) = output::baked::encode_baked_gltf(&run.mesh, exposure, "baked.bin")?;
+        set.stage("baked.bin", &bin)?;
+        set.stage("baked.gltf", &gltf)?;
+    }
     set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
     let png = match &run.wireframe {
         Some(coverage) => {
