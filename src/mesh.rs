@@ -1,12 +1,14 @@
-//! The output mesh: the triangles and per-vertex radiosity that every output
-//! (`solution.exr`, `baked.gltf`, renders) is made from.
+//! The output mesh: the triangles and per-vertex radiosity and irradiance
+//! that every output (`solution.exr`, `baked.gltf`, renders) is made from.
 //!
 //! Invariants (checked by [`OutputMesh::validate`]):
 //! - all per-vertex arrays have the same length;
 //! - every triangle indexes existing vertices, is counter-clockwise seen from
 //!   the front of its patch, and its three vertices belong to one patch;
-//! - positions and normals are finite, normals unit length, radiosity finite
-//!   and non-negative.
+//! - positions and normals are finite, normals unit length, radiosity and
+//!   irradiance finite and non-negative;
+//! - B = E + ρ H at every vertex, E and ρ those of its patch (the producers
+//!   make both from one evaluation; not checked here, the scene is not).
 
 use glam::Vec3;
 
@@ -22,6 +24,9 @@ pub struct OutputMesh {
     pub patch: Vec<u32>,
     /// Radiosity B (exitance, W/m² per channel).
     pub radiosity: Vec<Vec3>,
+    /// Irradiance H (the light arriving, W/m² per channel): what an engine
+    /// multiplies with a surface's own albedo.
+    pub irradiance: Vec<Vec3>,
     /// Vertex indices, counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
 }
@@ -36,7 +41,11 @@ impl OutputMesh {
     /// returned as a message.
     pub fn validate(&self) -> Result<(), String> {
         let n = self.positions.len();
-        if self.normals.len() != n || self.patch.len() != n || self.radiosity.len() != n {
+        if self.normals.len() != n
+            || self.patch.len() != n
+            || self.radiosity.len() != n
+            || self.irradiance.len() != n
+        {
             return Err("per-vertex arrays differ in length".into());
         }
         for k in 0..n {
@@ -50,6 +59,12 @@ impl OutputMesh {
             if !b.is_finite() || b.min_element() < 0.0 {
                 return Err(format!(
                     "vertex {k}: radiosity {b} is negative or non-finite"
+                ));
+            }
+            let h = self.irradiance[k];
+            if !h.is_finite() || h.min_element() < 0.0 {
+                return Err(format!(
+                    "vertex {k}: irradiance {h} is negative or non-finite"
                 ));
             }
         }

@@ -465,3 +465,76 @@ fn the_bake_is_the_same_whatever_the_render() {
         assert!(!dir.path().join("f").exists());
     }
 }
+
+/// Every vertex carries the light arriving, H, beside the light leaving,
+/// B = E + ρ H with its patch's E and ρ, in `solution.exr` and in the
+/// bake's `_IRRADIANCE`, whichever method solved.
+#[test]
+fn irradiance_and_radiosity_agree_at_every_vertex() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = scene_arg("cornell-box.gltf");
+    let scene = bundled_scene("cornell-box.gltf");
+    for method in ["hierarchical", "gauss-seidel", "shooting"] {
+        let run = nusselt(
+            &[
+                "solve",
+                &scene_path,
+                "-q",
+                "--accuracy",
+                "preview",
+                "--method",
+                method,
+                "--spp",
+                "1",
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "-o",
+                method,
+            ],
+            dir.path(),
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let res = dir.path().join(method);
+        let mesh = output::exr::read_solution(&res.join("solution.exr")).unwrap();
+        mesh.validate().unwrap();
+        let mut lit = 0;
+        for k in 0..mesh.vertex_count() {
+            let p = &scene.patches[mesh.patch[k] as usize];
+            let (b, h) = (mesh.radiosity[k].as_dvec3(), mesh.irradiance[k].as_dvec3());
+            let expected = p.emission + p.reflectance * h;
+            assert!(
+                (b - expected).abs().max_element() <= 1e-5 * b.max_element().max(1.0),
+                "{method}: vertex {k}: B {b}, E + ρH {expected}"
+            );
+            lit += usize::from(h.min_element() > 0.0);
+        }
+        assert!(
+            lit > mesh.vertex_count() / 2,
+            "{method}: {lit} lit vertices"
+        );
+        if method == "hierarchical" {
+            let (doc, buffers, _) = gltf::import(res.join("baked.gltf")).unwrap();
+            let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+            let accessor = prim
+                .attributes()
+                .find(|(s, _)| *s == gltf::Semantic::Extras("IRRADIANCE".into()))
+                .expect("an _IRRADIANCE attribute")
+                .1;
+            let values: Vec<[f32; 3]> =
+                gltf::accessor::Iter::<[f32; 3]>::new(accessor, |b| Some(&buffers[b.index()][..]))
+                    .unwrap()
+                    .collect();
+            let h: Vec<[f32; 3]> = mesh.irradiance.iter().map(|h| h.to_array()).collect();
+            assert!(
+                values == h,
+                "the bake's _IRRADIANCE differs from the solution's H"
+            );
+        }
+    }
+}

@@ -30,7 +30,18 @@ fn run(scene: &Scene, settings: &HierarchicalSettings) -> HierarchicalSolution {
             assert!((0.0..=1.0).contains(&l.form_factor) && (0.0..=1.0).contains(&l.visibility()));
         }
     }
-    leaf_output_mesh(scene, &s.hierarchy).validate().unwrap();
+    let mesh = leaf_output_mesh(scene, &s);
+    mesh.validate().unwrap();
+    // Each vertex's B and H are means of the same leaves: B = E + ρ H.
+    for k in 0..mesh.vertex_count() {
+        let p = &scene.patches[mesh.patch[k] as usize];
+        let (b, h) = (mesh.radiosity[k].as_dvec3(), mesh.irradiance[k].as_dvec3());
+        let expected = p.emission + p.reflectance * h;
+        assert!(
+            (b - expected).abs().max_element() <= 1e-5 * b.max_element().max(1.0),
+            "vertex {k}: B {b}, E + ρH {expected}"
+        );
+    }
     s
 }
 

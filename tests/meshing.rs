@@ -270,7 +270,7 @@ fn adaptivity_reduces_interpolation_error() {
             for w in [[0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6]] {
                 let at = w[0] * x[0] + w[1] * x[1] + w[2] * x[2];
                 let interp = w[0] * b[0] + w[1] * b[1] + w[2] * b[2];
-                let exact = points.value(p, at, LinkRays::Bright);
+                let exact = points.value(p, at, LinkRays::Bright).radiosity;
                 diff += a / 3.0 * (exact - interp).abs().max_element();
             }
             area += a;

@@ -41,6 +41,7 @@ fn random_mesh(n: usize, seed: u64) -> OutputMesh {
         .map(|_| Vec3::new(rng.random(), rng.random(), rng.random::<f32>() + 0.1).normalize())
         .collect();
     let radiosity: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng).abs()).collect();
+    let irradiance: Vec<Vec3> = (0..n).map(|_| vec3(&mut rng).abs()).collect();
     let patch: Vec<u32> = (0..n).map(|_| rng.random()).collect();
     let m = 2 * n + n % 7;
     let triangles = if n == 0 {
@@ -61,6 +62,7 @@ fn random_mesh(n: usize, seed: u64) -> OutputMesh {
         normals,
         patch,
         radiosity,
+        irradiance,
         triangles,
     }
 }
@@ -94,6 +96,8 @@ fn room_mesh(k: usize, size: Vec3) -> OutputMesh {
                     glow + unit[v_axis] * 2.0,
                     glow + 0.5 + face as f32 * 0.1,
                 ));
+                mesh.irradiance
+                    .push(Vec3::new(unit[u_axis] * 4.0, unit[v_axis], 0.7));
             }
         }
         let at = |i: usize, j: usize| base + (j * (k + 1) + i) as u32;
@@ -277,7 +281,9 @@ fn solution_layout_matches_the_contract() {
                 .collect()
         };
         let v = channels(vertices);
-        let float_names = ["B", "G", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "R"];
+        let float_names = [
+            "B", "G", "H.B", "H.G", "H.R", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "R",
+        ];
         let mut expected: Vec<&str> = float_names.to_vec();
         expected.push("patch");
         assert_eq!(v.keys().collect::<Vec<_>>(), expected);
@@ -289,6 +295,9 @@ fn solution_layout_matches_the_contract() {
             ("R", &mesh.radiosity, 0),
             ("G", &mesh.radiosity, 1),
             ("B", &mesh.radiosity, 2),
+            ("H.R", &mesh.irradiance, 0),
+            ("H.G", &mesh.irradiance, 1),
+            ("H.B", &mesh.irradiance, 2),
             ("P.X", &mesh.positions, 0),
             ("P.Y", &mesh.positions, 1),
             ("P.Z", &mesh.positions, 2),
@@ -348,10 +357,12 @@ fn solution_parts(
     index: u32,
 ) -> (Vec<AnyChannel<FlatSamples>>, Vec<AnyChannel<FlatSamples>>) {
     let f = |name: &str| AnyChannel::new(name, FlatSamples::F32(vec![0.5; 1024]));
-    let mut vertices: Vec<_> = ["R", "G", "B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z"]
-        .into_iter()
-        .map(f)
-        .collect();
+    let mut vertices: Vec<_> = [
+        "R", "G", "B", "H.R", "H.G", "H.B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z",
+    ]
+    .into_iter()
+    .map(f)
+    .collect();
     vertices.push(AnyChannel::new("patch", FlatSamples::U32(vec![0; 1024])));
     let mut idx = vec![0u32; 1024];
     idx[m.saturating_sub(1)] = index;
@@ -434,6 +445,10 @@ fn solution_reader_rejects_broken_files() {
     assert_input_error(decode(solution_file(4, 2, v, Some(t))), file, "N.Y");
 
     let (mut v, t) = solution_parts(2, 3);
+    v.retain(|c| !c.name.eq("H.G"));
+    assert_input_error(decode(solution_file(4, 2, v, Some(t))), file, "H.G");
+
+    let (mut v, t) = solution_parts(2, 3);
     for c in &mut v {
         if c.name.eq("patch") {
             c.sample_data = FlatSamples::F32(vec![0.0; 1024]);
@@ -469,11 +484,13 @@ fn solution_reader_rejects_broken_files() {
 
     // Wrong width.
     let (_, t) = solution_parts(2, 3);
-    let narrow: Vec<_> = ["R", "G", "B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z"]
-        .into_iter()
-        .map(|name| AnyChannel::new(name, FlatSamples::F32(vec![0.0; 512])))
-        .chain([AnyChannel::new("patch", FlatSamples::U32(vec![0; 512]))])
-        .collect();
+    let narrow: Vec<_> = [
+        "R", "G", "B", "H.R", "H.G", "H.B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z",
+    ]
+    .into_iter()
+    .map(|name| AnyChannel::new(name, FlatSamples::F32(vec![0.0; 512])))
+    .chain([AnyChannel::new("patch", FlatSamples::U32(vec![0; 512]))])
+    .collect();
     let bytes = write_layers(vec![
         layer(
             Some("vertices"),
@@ -847,7 +864,7 @@ fn baked_gltf_json_records_views_and_exposure() {
     assert_eq!(root["buffers"][0]["uri"], "my-bake.bin");
     assert_eq!(root["buffers"][0]["byteLength"], bin.len());
     let views = root["bufferViews"].as_array().unwrap();
-    assert_eq!(views.len(), 5);
+    assert_eq!(views.len(), 6);
     let mut end = 0;
     for view in views {
         let offset = view["byteOffset"].as_u64().unwrap();
@@ -859,9 +876,9 @@ fn baked_gltf_json_records_views_and_exposure() {
         assert!(target == 34962 || target == 34963);
     }
     assert_eq!(end as usize, bin.len());
-    assert_eq!(views[4]["target"], 34963);
+    assert_eq!(views[5]["target"], 34963);
     let attrs = &root["meshes"][0]["primitives"][0]["attributes"];
-    for name in ["POSITION", "NORMAL", "COLOR_0", "_RADIOSITY"] {
+    for name in ["POSITION", "NORMAL", "COLOR_0", "_RADIOSITY", "_IRRADIANCE"] {
         let a = &root["accessors"][attrs[name].as_u64().unwrap() as usize];
         assert_eq!(a["type"], "VEC3");
         assert_eq!(a["componentType"], 5126);
@@ -1079,7 +1096,7 @@ fn sample_output_folder_is_complete() {
     );
     assert_eq!(out_exr::read_image(&dir.join("render.exr")).unwrap(), frame);
     let (doc, _, _) = gltf::import(dir.join("baked.gltf")).unwrap();
-    assert_eq!(doc.accessors().count(), 5);
+    assert_eq!(doc.accessors().count(), 6);
     let names = listing(&dir);
     for f in [
         "baked.bin",
@@ -1107,6 +1124,7 @@ fn solution_exposure_is_the_area_weighted_log_average() {
             mesh.normals.push(Vec3::Z);
             mesh.patch.push(0);
             mesh.radiosity.push(Vec3::splat(b * PI));
+            mesh.irradiance.push(Vec3::splat(2.0 * b * PI));
         }
         mesh.triangles.push([base, base + 1, base + 2]);
         mesh.triangles.push([base, base + 2, base + 3]);

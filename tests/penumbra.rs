@@ -436,6 +436,7 @@ fn exact_grid(pen: &Penumbra, cells: usize) -> OutputMesh {
             mesh.normals.push(pen.floor_normal.as_vec3());
             mesh.patch.push(pen.floor_patch);
             mesh.radiosity.push(Vec3::splat(pen.radiosity(x) as f32));
+            mesh.irradiance.push(Vec3::ZERO);
         }
     }
     let id = |i: usize, j: usize| (j * (cells + 1) + i) as u32;

@@ -22,6 +22,7 @@ fn add_quad(mesh: &mut OutputMesh, (x0, x1): (f32, f32), (y0, y1): (f32, f32), z
         mesh.normals.push(Vec3::Z);
         mesh.patch.push(patch);
         mesh.radiosity.push(Vec3::ONE);
+        mesh.irradiance.push(Vec3::splat(2.0));
     }
     mesh.triangles.push([base, base + 1, base + 2]);
     mesh.triangles.push([base, base + 2, base + 3]);
@@ -121,6 +122,7 @@ fn edge_through_the_eye_plane_is_clipped_not_lost() {
         mesh.normals.push(Vec3::Y);
         mesh.patch.push(0);
         mesh.radiosity.push(Vec3::ZERO);
+        mesh.irradiance.push(Vec3::ZERO);
     }
     mesh.triangles.push([0, 1, 1]);
     let mask = wireframe_mask(&mesh, &view(21));
@@ -157,6 +159,7 @@ fn degenerate_input_does_not_panic() {
         normals: vec![Vec3::Z; n],
         patch: vec![0; n],
         radiosity: vec![Vec3::ZERO; n],
+        irradiance: vec![Vec3::ZERO; n],
         triangles: vec![
             [1, 1, 1],
             [1, 2, 3],

@@ -82,7 +82,7 @@ fn child(scene_path: &str, preset_name: &str) -> anyhow::Result<()> {
     let solution = solve_hierarchical(&scene, &bvh, &settings, &Progress::hidden());
     let total = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let mesh = leaf_output_mesh(&scene, &solution.hierarchy);
+    let mesh = leaf_output_mesh(&scene, &solution);
     let meshing = t.elapsed().as_secs_f64();
     let links = solution.link_count();
     let row = Row {

@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 
 WIDTH = 1024
-VERTEX_FLOATS = ["R", "G", "B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z"]
+VERTEX_FLOATS = ["R", "G", "B", "H.R", "H.G", "H.B", "P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z"]
 TRIANGLE_UINTS = ["I0", "I1", "I2"]
 
 
@@ -127,17 +127,19 @@ def check_solution(path):
     positions = np.stack([v["P.X"], v["P.Y"], v["P.Z"]], axis=1)
     normals = np.stack([v["N.X"], v["N.Y"], v["N.Z"]], axis=1)
     radiosity = np.stack([v["R"], v["G"], v["B"]], axis=1)
+    irradiance = np.stack([v["H.R"], v["H.G"], v["H.B"]], axis=1)
     if n:
         lengths = np.linalg.norm(normals.astype(np.float64), axis=1)
         worst = int(np.argmax(np.abs(lengths - 1.0)))
         require(abs(lengths[worst] - 1.0) < 1e-3, f"{path}: normal of vertex {worst} has length {lengths[worst]}")
         require(radiosity.min() >= 0.0, f"{path}: negative radiosity at vertex {int(np.argmin(radiosity.min(axis=1)))}")
+        require(irradiance.min() >= 0.0, f"{path}: negative irradiance at vertex {int(np.argmin(irradiance.min(axis=1)))}")
     indices = np.stack([t["I0"], t["I1"], t["I2"]], axis=1)
     if m:
         out = np.flatnonzero((indices >= n).any(axis=1))
         require(out.size == 0, f"{path}: triangle {int(out[0]) if out.size else -1} indexes beyond the {n} vertices")
     print(f"{path.name}: {n} vertices, {m} triangles: layout and values OK")
-    return positions, normals, radiosity, indices
+    return positions, normals, radiosity, irradiance, indices
 
 
 def accessor_array(gltf, buffers, index, path):
@@ -170,18 +172,23 @@ def check_baked(path, solution):
     require(len(primitives) == 1, f"{path}: {len(primitives)} primitives, expected 1")
     primitive = primitives[0]
     attributes = primitive.get("attributes", {})
-    for name in ["POSITION", "NORMAL", "COLOR_0", "_RADIOSITY"]:
+    for name in ["POSITION", "NORMAL", "COLOR_0", "_RADIOSITY", "_IRRADIANCE"]:
         require(name in attributes, f"{path}: the primitive lacks the attribute {name}")
     exposure = gltf.get("asset", {}).get("extras", {}).get("exposure")
     require(isinstance(exposure, (int, float)), f"{path}: asset.extras.exposure is missing")
 
-    positions, normals, radiosity, indices = solution
+    positions, normals, radiosity, irradiance, indices = solution
     try:
         baked = {name: accessor_array(gltf, buffers, attributes[name], path) for name in attributes}
         baked_indices = accessor_array(gltf, buffers, primitive["indices"], path).reshape(-1, 3)
     except (KeyError, ValueError, IndexError) as e:
         raise CheckError(f"{path}: malformed accessor: {e}") from e
-    for name, expected in [("POSITION", positions), ("NORMAL", normals), ("_RADIOSITY", radiosity)]:
+    for name, expected in [
+        ("POSITION", positions),
+        ("NORMAL", normals),
+        ("_RADIOSITY", radiosity),
+        ("_IRRADIANCE", irradiance),
+    ]:
         require(
             np.array_equal(baked[name], expected),
             f"{path}: {name} differs from the solution.exr vertices",

@@ -116,20 +116,28 @@ impl UniformMesh {
         )
     }
 
-    /// The output mesh, with each vertex's radiosity the area-weighted mean of
-    /// the elements of its patch that touch it (`element_radiosity` is
-    /// indexed like [`Self::elements`]).
-    pub fn output_mesh(&self, scene: &Scene, element_radiosity: &[DVec3]) -> OutputMesh {
+    /// The output mesh, with each vertex's radiosity and irradiance the
+    /// area-weighted means of those of the elements of its patch that touch
+    /// it (`element_radiosity` and `element_irradiance` are indexed like
+    /// [`Self::elements`]).
+    pub fn output_mesh(
+        &self,
+        scene: &Scene,
+        element_radiosity: &[DVec3],
+        element_irradiance: &[DVec3],
+    ) -> OutputMesh {
         let mut mesh = OutputMesh::default();
         for (pi, grid) in self.grids.iter().enumerate() {
             let base = mesh.positions.len() as u32;
             let normal = scene.patches[pi].normal.as_vec3();
             let mut sum = vec![DVec3::ZERO; grid.nodes.len()];
+            let mut sum_h = vec![DVec3::ZERO; grid.nodes.len()];
             let mut weight = vec![0.0; grid.nodes.len()];
             for (c, cell) in grid.cells.iter().enumerate() {
                 let e = &self.elements[grid.first_element + c];
                 for &k in cell {
                     sum[k as usize] += e.area * element_radiosity[grid.first_element + c];
+                    sum_h[k as usize] += e.area * element_irradiance[grid.first_element + c];
                     weight[k as usize] += e.area;
                 }
                 mesh.triangles
@@ -143,12 +151,12 @@ impl UniformMesh {
                 mesh.positions.push(node.as_vec3());
                 mesh.normals.push(normal);
                 mesh.patch.push(pi as u32);
-                let b = if weight[k] > 0.0 {
-                    sum[k] / weight[k]
-                } else {
-                    DVec3::ZERO
+                let mean = |sum: DVec3| match weight[k] > 0.0 {
+                    true => (sum / weight[k]).max(DVec3::ZERO).as_vec3(),
+                    false => Vec3::ZERO,
                 };
-                mesh.radiosity.push(b.max(DVec3::ZERO).as_vec3());
+                mesh.radiosity.push(mean(sum[k]));
+                mesh.irradiance.push(mean(sum_h[k]));
             }
         }
         drop_unused_vertices(mesh)
@@ -174,6 +182,7 @@ fn drop_unused_vertices(mut mesh: OutputMesh) -> OutputMesh {
         out.normals.push(mesh.normals[k]);
         out.patch.push(mesh.patch[k]);
         out.radiosity.push(mesh.radiosity[k]);
+        out.irradiance.push(mesh.irradiance[k]);
     }
     out.triangles = mesh
         .triangles
@@ -307,8 +316,15 @@ mod tests {
             .iter()
             .map(|e| DVec3::splat(e.centroid.x))
             .collect();
-        let out = m.output_mesh(&s, &b);
+        let h: Vec<DVec3> = b.iter().map(|b| 2.0 * b).collect();
+        let out = m.output_mesh(&s, &b, &h);
         out.validate().unwrap();
+        for (b, h) in out.radiosity.iter().zip(&out.irradiance) {
+            assert!(
+                (2.0 * b - h).length() < 1e-5 * h.length().max(1.0),
+                "{b} {h}"
+            );
+        }
         assert_eq!(out.triangles.len(), 2 * 28 + 25);
     }
 }

@@ -22,7 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::discontinuity::{Segment, SegmentKind};
-use crate::meshing::point_gather::{LinkRays, PointEvaluator};
+use crate::meshing::point_gather::{LinkRays, PointEvaluator, PointLight};
 use crate::meshing::triangulate::PatchTriangulation;
 use crate::scene::Scene;
 use crate::util::geometry::segment_distance;
@@ -214,7 +214,7 @@ pub(super) fn side_values(
     tri: &PatchTriangulation,
     copies: &[SideCopy],
     nudge: f64,
-) -> Vec<DVec3> {
+) -> Vec<PointLight> {
     copies
         .par_iter()
         .map(|(_, v, towards)| {

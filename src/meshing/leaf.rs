@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use crate::hierarchical::HierarchicalSolution;
 use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::mesh::OutputMesh;
-use crate::meshing::point_gather::{PointGather, point_radiosity};
+use crate::meshing::point_gather::{PointGather, PointLight, point_light};
 use crate::scene::{Scene, Shape};
 use crate::util::geometry::{PositionKey, position_key};
 use crate::visibility::TriangleBvh;
@@ -27,7 +27,7 @@ pub enum VertexValues {
     /// Area-weighted mean of the leaves sharing the vertex (cheap; blurs
     /// and biases next to edges, where leaves are large).
     LeafMean,
-    /// [`point_radiosity`] at the vertex, from the first leaf (in mesh
+    /// [`point_light`] at the vertex, from the first leaf (in mesh
     /// order) that has it as a corner.
     PointGather {
         /// Seed of the vertices' visibility rays.
@@ -43,7 +43,7 @@ pub fn output_mesh(
     solution: &HierarchicalSolution,
     values: VertexValues,
 ) -> OutputMesh {
-    let (mut mesh, incidences) = leaf_mesh(scene, &solution.hierarchy);
+    let (mut mesh, incidences) = leaf_mesh(scene, &solution.hierarchy, &solution.irradiance);
     let seed = match values {
         VertexValues::LeafMean => return mesh,
         VertexValues::PointGather { seed } => seed,
@@ -53,20 +53,22 @@ pub fn output_mesh(
     for &(v, leaf) in &incidences {
         holder[v as usize].get_or_insert(leaf);
     }
-    let values: Vec<Option<DVec3>> = holder
+    let values: Vec<Option<PointLight>> = holder
         .par_iter()
         .enumerate()
         .with_min_len(16)
         .map(|(v, leaf)| {
             leaf.map(|leaf| {
                 let x = mesh.positions[v].as_dvec3();
-                point_radiosity(scene, bvh, solution, leaf, x, seed, PointGather::default())
+                point_light(scene, bvh, solution, leaf, x, seed, PointGather::default())
+                    .non_negative()
             })
         })
         .collect();
-    for (b, value) in mesh.radiosity.iter_mut().zip(values) {
+    for (v, value) in values.into_iter().enumerate() {
         if let Some(value) = value {
-            *b = value.max(DVec3::ZERO).as_vec3();
+            mesh.radiosity[v] = value.radiosity.as_vec3();
+            mesh.irradiance[v] = value.irradiance.as_vec3();
         }
     }
     mesh
@@ -74,19 +76,25 @@ pub fn output_mesh(
 
 /// The output mesh of a solved hierarchy with leaf-mean vertex values
 /// ([`VertexValues::LeafMean`]).
-pub fn leaf_output_mesh(scene: &Scene, hierarchy: &Hierarchy) -> OutputMesh {
-    leaf_mesh(scene, hierarchy).0
+pub fn leaf_output_mesh(scene: &Scene, solution: &HierarchicalSolution) -> OutputMesh {
+    leaf_mesh(scene, &solution.hierarchy, &solution.irradiance).0
 }
 
 /// Each leaf triangulated (quad → 2 triangles, triangle → 1), vertices
 /// welded by exact position within a patch, each vertex's radiosity the
-/// area-weighted mean of the leaves of its patch having it as a corner;
+/// area-weighted mean of the leaves of its patch having it as a corner
+/// (and its irradiance the same mean of `irradiance`, per element);
 /// and the (vertex, leaf) incidences, in mesh order. (A discontinuity
 /// mesher replaces this.)
-fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, ElementId)>) {
+fn leaf_mesh(
+    scene: &Scene,
+    hierarchy: &Hierarchy,
+    irradiance: &[DVec3],
+) -> (OutputMesh, Vec<(u32, ElementId)>) {
     let mut incidences = Vec::new();
     let mut mesh = OutputMesh::default();
     let mut sum: Vec<DVec3> = Vec::new();
+    let mut sum_h: Vec<DVec3> = Vec::new();
     let mut weight: Vec<f64> = Vec::new();
     for patch in 0..hierarchy.root_count() {
         let normal = scene.patches[patch].normal.as_vec3();
@@ -109,6 +117,7 @@ fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, Ele
                         mesh.normals.push(normal);
                         mesh.patch.push(patch as u32);
                         sum.push(DVec3::ZERO);
+                        sum_h.push(DVec3::ZERO);
                         weight.push(0.0);
                         (mesh.positions.len() - 1) as u32
                     })
@@ -116,6 +125,7 @@ fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, Ele
                 .collect();
             for &k in &corners {
                 sum[k as usize] += e.area * e.radiosity;
+                sum_h[k as usize] += e.area * irradiance[id.index()];
                 weight[k as usize] += e.area;
                 incidences.push((k, id));
             }
@@ -125,16 +135,19 @@ fn leaf_mesh(scene: &Scene, hierarchy: &Hierarchy) -> (OutputMesh, Vec<(u32, Ele
             }
         }
     }
-    mesh.radiosity = sum
-        .iter()
-        .zip(&weight)
-        .map(|(s, w)| {
-            if *w > 0.0 {
-                (*s / *w).max(DVec3::ZERO).as_vec3()
-            } else {
-                Vec3::ZERO
-            }
-        })
-        .collect();
+    let mean = |sum: &[DVec3]| -> Vec<Vec3> {
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, w)| {
+                if *w > 0.0 {
+                    (*s / *w).max(DVec3::ZERO).as_vec3()
+                } else {
+                    Vec3::ZERO
+                }
+            })
+            .collect()
+    };
+    mesh.radiosity = mean(&sum);
+    mesh.irradiance = mean(&sum_h);
     (mesh, incidences)
 }

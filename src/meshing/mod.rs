@@ -17,7 +17,7 @@
 //!    vertices on it and are triangulated again (`contact.rs`).
 //! 3. Each vertex's radiosity by a final gather at the vertex
 //!    ([`point_gather::PointEvaluator`], built on
-//!    [`point_gather::point_radiosity`]) from the leaf that holds it, the
+//!    [`point_gather::point_light`]) from the leaf that holds it, the
 //!    emitters' direct light gathered at the vertex itself (exact form
 //!    factor and its own rays) for up to
 //!    [`point_gather::MAX_DIRECT_EMITTERS`] emitter patches; an emitter from
@@ -66,7 +66,7 @@ use crate::error::Result;
 use crate::hierarchical::{HierarchicalSolution, scene_scales};
 use crate::mesh::OutputMesh;
 use crate::meshing::adapt::Adaptivity;
-use crate::meshing::point_gather::{LinkRays, PointEvaluator};
+use crate::meshing::point_gather::{LinkRays, PointEvaluator, PointLight};
 use crate::meshing::triangulate::{
     PatchInput, PatchTriangulation, TriangulateOptions, triangulate_patches,
 };
@@ -321,7 +321,9 @@ impl Mesher<'_> {
                 mesh.positions.push(x.as_vec3());
                 mesh.normals.push(normal);
                 mesh.patch.push(p as u32);
-                mesh.radiosity.push(cache.get(p, x).as_vec3());
+                let light = cache.light(p, x);
+                mesh.radiosity.push(light.radiosity.as_vec3());
+                mesh.irradiance.push(light.irradiance.as_vec3());
             }
             let mut triangles = tri.triangles.clone();
             stats.constrained_edges += tri.constrained_edges.len();
@@ -330,7 +332,8 @@ impl Mesher<'_> {
             stats.evaluations += copies.len();
             for ((slots, v, _), value) in copies.into_iter().zip(values) {
                 let Some(slots) = slots else {
-                    mesh.radiosity[(base + v) as usize] = value.as_vec3();
+                    mesh.radiosity[(base + v) as usize] = value.radiosity.as_vec3();
+                    mesh.irradiance[(base + v) as usize] = value.irradiance.as_vec3();
                     continue;
                 };
                 stats.split_vertices += 1;
@@ -338,7 +341,8 @@ impl Mesher<'_> {
                 mesh.positions.push(tri.positions[v as usize].as_vec3());
                 mesh.normals.push(normal);
                 mesh.patch.push(p as u32);
-                mesh.radiosity.push(value.as_vec3());
+                mesh.radiosity.push(value.radiosity.as_vec3());
+                mesh.irradiance.push(value.irradiance.as_vec3());
                 for (t, corner) in slots {
                     triangles[t][corner] = copy;
                 }
@@ -358,15 +362,21 @@ fn key(patch: usize, x: DVec3) -> Key {
     (patch as u32, position_key(x))
 }
 
-/// The radiosity at every vertex (and adaptivity's centroid) evaluated so
-/// far, by patch and exact position: a point kept from one triangulation
-/// to the next is evaluated once.
+/// The radiosity and irradiance at every vertex (and adaptivity's
+/// centroid) evaluated so far, by patch and exact position: a point kept
+/// from one triangulation to the next is evaluated once.
 #[derive(Default)]
-struct ValueCache(HashMap<Key, DVec3>);
+struct ValueCache(HashMap<Key, PointLight>);
 
 impl ValueCache {
-    /// The value at vertex `x` of patch `patch` (evaluated before).
+    /// The radiosity at vertex `x` of patch `patch` (evaluated before).
     fn get(&self, patch: usize, x: DVec3) -> DVec3 {
+        self.light(patch, x).radiosity
+    }
+
+    /// The radiosity and irradiance at vertex `x` of patch `patch`
+    /// (evaluated before).
+    fn light(&self, patch: usize, x: DVec3) -> PointLight {
         self.0[&key(patch, x)]
     }
 
@@ -390,7 +400,7 @@ impl ValueCache {
             .copied()
             .filter(|&(p, x)| !self.0.contains_key(&key(p, x)) && seen.insert(key(p, x)))
             .collect();
-        let values: Vec<DVec3> = missing
+        let values: Vec<PointLight> = missing
             .par_iter()
             .with_min_len(16)
             .map(|&(p, x)| points.value(p, x, LinkRays::Bright))

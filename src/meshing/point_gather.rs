@@ -4,7 +4,8 @@
 //! itself, and the emitters' direct light gathered at the point with its
 //! own visibility rays.
 //!
-//! Owns: [`point_radiosity`] (one point, one leaf), [`PointEvaluator`]
+//! Owns: [`point_light`] (one point, one leaf: its radiosity and
+//! irradiance, [`PointLight`]), [`PointEvaluator`]
 //! (any point of a patch: finds the leaf, chooses the emitters gathered
 //! directly) and [`dark_emitters`] (emitters the solution shows hidden
 //! from a whole patch).
@@ -26,12 +27,12 @@ use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
 use crate::visibility::{Shaft, TriangleBvh};
 
-/// Visibility rays per link not too dim to matter in [`point_radiosity`].
+/// Visibility rays per link not too dim to matter in [`point_light`].
 pub const POINT_RAYS: usize = 8;
 
 /// A link whose light at a point, ρ F B, is below this fraction of the
 /// brightness threshold `bf_eps` keeps its own visible fraction in
-/// [`point_radiosity`]: the point's rays could move the value by less
+/// [`point_light`]: the point's rays could move the value by less
 /// than that.
 pub const DIM_LINK_FRACTION: f64 = 0.2;
 
@@ -57,7 +58,7 @@ pub enum LinkRays {
     Every,
 }
 
-/// How [`point_radiosity`] gathers.
+/// How [`point_light`] gathers.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PointGather<'a> {
     /// Which links cast rays from the point.
@@ -79,7 +80,7 @@ pub struct PointGather<'a> {
 }
 
 /// Rays that confirm an emitter the solution found hidden from a whole
-/// patch, in [`point_radiosity`] (see [`PointGather::dark`]).
+/// patch, in [`point_light`] (see [`PointGather::dark`]).
 pub const PROBE_RAYS: usize = 16;
 
 /// For each patch, the emitters among `direct` (at most 64, bit i for
@@ -119,7 +120,28 @@ pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u
     lit.into_iter().map(|m| all & !m).collect()
 }
 
-/// Radiosity at point `x` of leaf `leaf` by a final gather over the links
+/// What arrives at a point and what leaves it: B = E + ρ H with the E and
+/// ρ of its patch.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PointLight {
+    /// Radiosity B.
+    pub radiosity: DVec3,
+    /// Irradiance H.
+    pub irradiance: DVec3,
+}
+
+impl PointLight {
+    /// Both clamped at zero (a gather of non-negative terms; rounding
+    /// aside).
+    pub fn non_negative(self) -> PointLight {
+        PointLight {
+            radiosity: self.radiosity.max(DVec3::ZERO),
+            irradiance: self.irradiance.max(DVec3::ZERO),
+        }
+    }
+}
+
+/// Radiosity and irradiance at point `x` of leaf `leaf` by a final gather over the links
 /// of the leaf and its ancestors: each link's source contributes its exact
 /// point-to-polygon form factor from `x` (not the link's mean over its
 /// receiver) times its radiosity, and, for a link not too dim to matter
@@ -129,7 +151,7 @@ pub fn dark_emitters(scene: &Scene, solution: &HierarchicalSolution, direct: &[u
 /// says which links cast rays and which emitters are gathered directly.
 /// `x` is moved a millionth of the way toward the leaf's centroid first,
 /// so that a point on an edge takes its value from inside the leaf.
-pub fn point_radiosity(
+pub fn point_light(
     scene: &Scene,
     bvh: &TriangleBvh,
     solution: &HierarchicalSolution,
@@ -137,14 +159,17 @@ pub fn point_radiosity(
     x: DVec3,
     seed: u64,
     gather: PointGather,
-) -> DVec3 {
+) -> PointLight {
     let h = &solution.hierarchy;
     let e = h.get(leaf);
     let patch = &scene.patches[e.patch as usize];
     let x = x + 1e-6 * (e.centroid() - x);
     if bvh.buried(scene, x, patch.normal) {
         // Under a box, inside a solid: nothing reaches the point.
-        return patch.emission;
+        return PointLight {
+            radiosity: patch.emission,
+            irradiance: DVec3::ZERO,
+        };
     }
     // The visible fraction of `polygon` (normal `n_s`) from x: exactly 1
     // when nothing stands in the shaft between them, else by `n` rays.
@@ -237,7 +262,10 @@ pub fn point_radiosity(
         }
         id = h.get(k).parent();
     }
-    patch.emission + patch.reflectance * irradiance
+    PointLight {
+        radiosity: patch.emission + patch.reflectance * irradiance,
+        irradiance,
+    }
 }
 
 /// Emitter patches whose light is gathered at each point rather than
@@ -245,7 +273,7 @@ pub fn point_radiosity(
 /// the emitter count, and the links carry the direct light too.
 pub const MAX_DIRECT_EMITTERS: usize = 64;
 
-/// Radiosity at any point of a solved scene: [`point_radiosity`] from the
+/// Radiosity at any point of a solved scene: [`point_light`] from the
 /// leaf holding the point, clamped at zero, with the direct light of up to
 /// [`MAX_DIRECT_EMITTERS`] emitter patches gathered at the point.
 pub struct PointEvaluator<'a> {
@@ -291,16 +319,16 @@ impl<'a> PointEvaluator<'a> {
         &self.direct
     }
 
-    /// The radiosity at `x` on patch `patch`, `link_rays` saying which
-    /// links cast their own rays from `x`.
-    pub fn value(&self, patch: usize, x: DVec3, link_rays: LinkRays) -> DVec3 {
+    /// The radiosity and irradiance at `x` on patch `patch`, `link_rays`
+    /// saying which links cast their own rays from `x`.
+    pub fn value(&self, patch: usize, x: DVec3, link_rays: LinkRays) -> PointLight {
         let leaf = self.solution.hierarchy.leaf_at(self.scene, patch, x);
         let gather = PointGather {
             link_rays,
             direct: &self.direct,
             dark: &self.dark,
         };
-        point_radiosity(
+        point_light(
             self.scene,
             self.bvh,
             self.solution,
@@ -309,6 +337,6 @@ impl<'a> PointEvaluator<'a> {
             self.seed,
             gather,
         )
-        .max(DVec3::ZERO)
+        .non_negative()
     }
 }

@@ -14,11 +14,14 @@
 //!   view 1  NORMAL      float VEC3  n × 12 bytes  ARRAY_BUFFER
 //!   view 2  COLOR_0     float VEC3  n × 12 bytes  ARRAY_BUFFER
 //!   view 3  _RADIOSITY  float VEC3  n × 12 bytes  ARRAY_BUFFER
-//!   view 4  indices     uint32 SCALAR 3m × 4 bytes ELEMENT_ARRAY_BUFFER
+//!   view 4  _IRRADIANCE float VEC3  n × 12 bytes  ARRAY_BUFFER
+//!   view 5  indices     uint32 SCALAR 3m × 4 bytes ELEMENT_ARRAY_BUFFER
 //! ```
 //!
 //! `COLOR_0` = clamp(B / π × exposure, 0, 1) per channel (linear display
-//! radiance), `_RADIOSITY` = B (linear, unclamped, W/m²). `asset.extras`
+//! radiance), `_RADIOSITY` = B (linear, unclamped, W/m²), `_IRRADIANCE` =
+//! H (the light arriving, linear, W/m²: an engine multiplies it with its
+//! own albedo, B = E + ρ H). `asset.extras`
 //! records the exposure; `asset.generator` is "nusselt VERSION".
 //!
 //! Invariant: the vertices and triangles are those of the [`OutputMesh`] in
@@ -43,6 +46,8 @@ const BAKED: &str = "the baked glTF";
 const UNLIT: &str = "KHR_materials_unlit";
 /// Name of the custom attribute holding the radiosity (without the `_`).
 pub const RADIOSITY_ATTRIBUTE: &str = "RADIOSITY";
+/// Name of the custom attribute holding the irradiance (without the `_`).
+pub const IRRADIANCE_ATTRIBUTE: &str = "IRRADIANCE";
 
 /// The displayed colour of a vertex of radiosity `b`: clamp(B / π ×
 /// exposure, 0, 1) per channel.
@@ -106,6 +111,7 @@ fn baked_root(
     let normal = packer.vec3_accessor(&mesh.normals, "NORMAL", false);
     let color = packer.vec3_accessor(&colors, "COLOR_0", false);
     let radiosity = packer.vec3_accessor(&mesh.radiosity, "_RADIOSITY", false);
+    let irradiance = packer.vec3_accessor(&mesh.irradiance, "_IRRADIANCE", false);
     let index_accessor = packer.index_accessor(&indices);
     let (mut root, bin) = packer.finish();
 
@@ -132,6 +138,10 @@ fn baked_root(
         (
             Valid(Semantic::Extras(RADIOSITY_ATTRIBUTE.to_string())),
             radiosity,
+        ),
+        (
+            Valid(Semantic::Extras(IRRADIANCE_ATTRIBUTE.to_string())),
+            irradiance,
         ),
     ]);
     let mesh_index = root.push(json::Mesh {
@@ -168,6 +178,7 @@ fn baked_root(
         "version": env!("CARGO_PKG_VERSION"),
         "COLOR_0": "clamp(B / pi * exposure, 0, 1), linear",
         "_RADIOSITY": "radiosity B, linear, unclamped, W/m^2",
+        "_IRRADIANCE": "irradiance H, linear, W/m^2; B = E + albedo * H",
     });
     root.asset = json::Asset {
         generator: Some(format!("nusselt {}", env!("CARGO_PKG_VERSION"))),
@@ -325,11 +336,16 @@ fn check(mesh: &OutputMesh, exposure: f32, bin_name: &str) -> Result<()> {
         ));
     }
     let n = mesh.positions.len();
-    if mesh.normals.len() != n || mesh.radiosity.len() != n || mesh.patch.len() != n {
+    if mesh.normals.len() != n
+        || mesh.radiosity.len() != n
+        || mesh.irradiance.len() != n
+        || mesh.patch.len() != n
+    {
         return fail(format!(
-            "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} patch indices)",
+            "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} irradiances, {} patch indices)",
             mesh.normals.len(),
             mesh.radiosity.len(),
+            mesh.irradiance.len(),
             mesh.patch.len()
         ));
     }
@@ -343,16 +359,16 @@ fn check(mesh: &OutputMesh, exposure: f32, bin_name: &str) -> Result<()> {
     if u32::try_from(n).is_err() || u32::try_from(mesh.triangles.len() * 3).is_err() {
         return fail(format!("the mesh is too large ({n} vertices)"));
     }
-    for (k, ((p, nrm), b)) in mesh
-        .positions
-        .iter()
-        .zip(&mesh.normals)
-        .zip(&mesh.radiosity)
-        .enumerate()
-    {
-        if !p.is_finite() || !nrm.is_finite() || !b.is_finite() {
+    for k in 0..n {
+        let values = [
+            mesh.positions[k],
+            mesh.normals[k],
+            mesh.radiosity[k],
+            mesh.irradiance[k],
+        ];
+        if !values.iter().all(|v| v.is_finite()) {
             return fail(format!(
-                "vertex {k} has a non-finite position, normal or radiosity"
+                "vertex {k} has a non-finite position, normal, radiosity or irradiance"
             ));
         }
     }

@@ -5,7 +5,8 @@
 //!
 //! ```text
 //! part "vertices"   width 1024, height max(1, ceil(n / 1024)), attribute vertexCount = n (int)
-//!   float32 R G B (radiosity B), P.X P.Y P.Z (position), N.X N.Y N.Z (unit normal)
+//!   float32 R G B (radiosity B), H.R H.G H.B (irradiance H; B = E + ρ H),
+//!           P.X P.Y P.Z (position), N.X N.Y N.Z (unit normal)
 //!   uint32  patch (input patch index)
 //! part "triangles"  width 1024, height max(1, ceil(m / 1024)), attribute triangleCount = m (int)
 //!   uint32  I0 I1 I2 (vertex indices, counter-clockwise seen from the front)
@@ -143,13 +144,18 @@ fn solution_part(
 /// missing vertex, or a count exceeds what an EXR `int` attribute holds.
 pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
     let n = mesh.positions.len();
-    if mesh.normals.len() != n || mesh.radiosity.len() != n || mesh.patch.len() != n {
+    if mesh.normals.len() != n
+        || mesh.radiosity.len() != n
+        || mesh.irradiance.len() != n
+        || mesh.patch.len() != n
+    {
         return Err(Error::encode(
             SOLUTION,
             format!(
-                "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} patch indices)",
+                "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} irradiances, {} patch indices)",
                 mesh.normals.len(),
                 mesh.radiosity.len(),
+                mesh.irradiance.len(),
                 mesh.patch.len()
             ),
         ));
@@ -175,6 +181,9 @@ pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
             f32_channel("R", v_len, component(&mesh.radiosity, 0)),
             f32_channel("G", v_len, component(&mesh.radiosity, 1)),
             f32_channel("B", v_len, component(&mesh.radiosity, 2)),
+            f32_channel("H.R", v_len, component(&mesh.irradiance, 0)),
+            f32_channel("H.G", v_len, component(&mesh.irradiance, 1)),
+            f32_channel("H.B", v_len, component(&mesh.irradiance, 2)),
             f32_channel("P.X", v_len, component(&mesh.positions, 0)),
             f32_channel("P.Y", v_len, component(&mesh.positions, 1)),
             f32_channel("P.Z", v_len, component(&mesh.positions, 2)),
@@ -242,6 +251,7 @@ pub fn decode_solution(bytes: &[u8], source: &Path) -> Result<OutputMesh> {
             .collect()
     };
     let radiosity = vec3s(["R", "G", "B"], "radiosity")?;
+    let irradiance = vec3s(["H.R", "H.G", "H.B"], "irradiance")?;
     let positions = vec3s(["P.X", "P.Y", "P.Z"], "position")?;
     let normals = vec3s(["N.X", "N.Y", "N.Z"], "normal")?;
     let patch = vertices.u32s("patch")?[..n].to_vec();
@@ -267,6 +277,7 @@ pub fn decode_solution(bytes: &[u8], source: &Path) -> Result<OutputMesh> {
         normals,
         patch,
         radiosity,
+        irradiance,
         triangles,
     })
 }

@@ -67,7 +67,7 @@ pub(super) fn solve(
     drop(matrix);
 
     let t = Instant::now();
-    let out = mesh.output_mesh(scene, &solution.radiosity);
+    let out = mesh.output_mesh(scene, &solution.radiosity, &solution.irradiance);
     report.times.output_mesh = secs(t);
 
     let t = Instant::now();
@@ -130,7 +130,8 @@ fn solve_with_snapshots(
     let mut observe = |iteration: usize, b: &[DVec3]| {
         if settings.snapshots.contains(&iteration) {
             let t = Instant::now();
-            let out = mesh.output_mesh(scene, b);
+            // Only rendered, which takes B: no irradiance kept.
+            let out = mesh.output_mesh(scene, b, &vec![DVec3::ZERO; b.len()]);
             snapshots.push((
                 iteration,
                 render(&out, view, &settings.render, &Progress::hidden()),

@@ -226,6 +226,7 @@ mod tests {
             normals: vec![Vec3::Z; 4],
             patch: vec![0; 4],
             radiosity: vec![Vec3::ZERO, Vec3::splat(2.0), Vec3::splat(2.0), Vec3::ZERO],
+            irradiance: vec![Vec3::ZERO, Vec3::splat(4.0), Vec3::splat(4.0), Vec3::ZERO],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
         };
         mesh.validate().unwrap();
@@ -279,6 +280,7 @@ mod tests {
             normals: vec![Vec3::Z; 4],
             patch: vec![0; 4],
             radiosity: vec![Vec3::splat(2.0); 4],
+            irradiance: vec![Vec3::splat(4.0); 4],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
         };
         // The image plane at the square spans [-2, 2]: pixels 0.5 wide,
