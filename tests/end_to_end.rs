@@ -10,7 +10,8 @@ use nusselt::render::{RenderSettings, render};
 use nusselt::report::Report;
 
 use crate::fixtures::{
-    assert_user_error, bundled_scene, gltf_json, inward_box, nusselt, scene_arg,
+    assert_light_adds_up, assert_user_error, bundled_scene, gltf_json, inward_box, nusselt,
+    nusselt_ok, scene_arg,
 };
 
 fn read_report(dir: &Path) -> Report {
@@ -369,17 +370,17 @@ fn formfactors_command_matches_closed_forms() {
 fn the_bake_is_the_same_whatever_the_render() {
     let dir = tempfile::tempdir().unwrap();
     let scene_path = scene_arg("cornell-box.gltf");
-    let solve = |out: &str, view: &[&str]| {
+    // A preview solve of the Cornell box into `out` with `extra` flags.
+    let solve_into = |out: &str, extra: &[&str]| {
         let mut args = vec!["solve", &scene_path, "-q", "--accuracy", "preview"];
         args.extend_from_slice(&["--spp", "1", "-o", out]);
-        args.extend_from_slice(view);
-        let run = nusselt(&args, dir.path());
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let res = dir.path().join(out);
+        args.extend_from_slice(extra);
+        nusselt_ok(&args, dir.path());
+        dir.path().join(out)
+    };
+    // Its bake and exposure.
+    let solve = |out: &str, view: &[&str]| {
+        let res = solve_into(out, view);
         let bake = (
             fs::read(res.join("baked.gltf")).unwrap(),
             fs::read(res.join("baked.bin")).unwrap(),
@@ -401,31 +402,7 @@ fn the_bake_is_the_same_whatever_the_render() {
         assert!(bake == first, "{view:?}: the bake differs");
     }
     // `--glb`: the same document and buffer in one binary file.
-    let run = nusselt(
-        &[
-            "solve",
-            &scene_path,
-            "-q",
-            "--accuracy",
-            "preview",
-            "--spp",
-            "1",
-            "-o",
-            "g",
-            "--width",
-            "16",
-            "--height",
-            "16",
-            "--glb",
-        ],
-        dir.path(),
-    );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let g = dir.path().join("g");
+    let g = solve_into("g", &["--width", "16", "--height", "16", "--glb"]);
     assert!(!g.join("baked.gltf").exists() && !g.join("baked.bin").exists());
     let (doc, buffers, _) = gltf::import(g.join("baked.glb")).unwrap();
     let (doc_a, buffers_a, _) = gltf::import(dir.path().join("a/baked.gltf")).unwrap();
@@ -455,13 +432,7 @@ fn the_bake_is_the_same_whatever_the_render() {
         "--exposure=NaN",
     ] {
         let run = nusselt(&["solve", &scene_path, "-q", "-o", "f", bad], dir.path());
-        let err = String::from_utf8_lossy(&run.stderr);
-        assert_eq!(run.status.code(), Some(1), "{bad}: {err}");
-        assert!(
-            err.starts_with("error:") && err.contains("--exposure"),
-            "{err}"
-        );
-        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert_user_error(&run, "--exposure");
         assert!(!dir.path().join("f").exists());
     }
 }
@@ -475,45 +446,33 @@ fn irradiance_and_radiosity_agree_at_every_vertex() {
     let scene_path = scene_arg("cornell-box.gltf");
     let scene = bundled_scene("cornell-box.gltf");
     for method in ["hierarchical", "gauss-seidel", "shooting"] {
-        let run = nusselt(
-            &[
-                "solve",
-                &scene_path,
-                "-q",
-                "--accuracy",
-                "preview",
-                "--method",
-                method,
-                "--spp",
-                "1",
-                "--width",
-                "16",
-                "--height",
-                "16",
-                "-o",
-                method,
-            ],
-            dir.path(),
-        );
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        let args = [
+            "solve",
+            &scene_path,
+            "-q",
+            "--accuracy",
+            "preview",
+            "--method",
+            method,
+            "--spp",
+            "1",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "-o",
+            method,
+        ];
+        nusselt_ok(&args, dir.path());
         let res = dir.path().join(method);
         let mesh = output::exr::read_solution(&res.join("solution.exr")).unwrap();
         mesh.validate().unwrap();
-        let mut lit = 0;
-        for k in 0..mesh.vertex_count() {
-            let p = &scene.patches[mesh.patch[k] as usize];
-            let (b, h) = (mesh.radiosity[k].as_dvec3(), mesh.irradiance[k].as_dvec3());
-            let expected = p.emission + p.reflectance * h;
-            assert!(
-                (b - expected).abs().max_element() <= 1e-5 * b.max_element().max(1.0),
-                "{method}: vertex {k}: B {b}, E + ρH {expected}"
-            );
-            lit += usize::from(h.min_element() > 0.0);
-        }
+        assert_light_adds_up(&scene, &mesh, method);
+        let lit = mesh
+            .irradiance
+            .iter()
+            .filter(|h| h.min_element() > 0.0)
+            .count();
         assert!(
             lit > mesh.vertex_count() / 2,
             "{method}: {lit} lit vertices"

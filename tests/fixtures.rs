@@ -557,6 +557,31 @@ pub fn nusselt(args: &[&str], cwd: &Path) -> Output {
         .expect("the nusselt binary runs")
 }
 
+/// Runs the binary with `args` and asserts that it succeeded.
+pub fn nusselt_ok(args: &[&str], cwd: &Path) -> Output {
+    let out = nusselt(args, cwd);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Asserts B = E + ρ H at every vertex of `mesh` (E and ρ of its patch in
+/// `scene`, to 10⁻⁵ of max(B, 1)); `what` names the run in messages.
+pub fn assert_light_adds_up(scene: &Scene, mesh: &nusselt::mesh::OutputMesh, what: &str) {
+    for k in 0..mesh.vertex_count() {
+        let p = &scene.patches[mesh.patch[k] as usize];
+        let (b, h) = (mesh.radiosity[k].as_dvec3(), mesh.irradiance[k].as_dvec3());
+        let expected = p.emission + p.reflectance * h;
+        assert!(
+            (b - expected).abs().max_element() <= 1e-5 * b.max_element().max(1.0),
+            "{what}: vertex {k}: B {b}, E + ρH {expected}"
+        );
+    }
+}
+
 /// Asserts a failed run: exit code 1 and exactly one stderr line, starting
 /// with `error:` and containing `needle`.
 pub fn assert_user_error(out: &Output, needle: &str) {

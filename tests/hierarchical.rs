@@ -15,7 +15,7 @@ use nusselt::scene::Scene;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use crate::fixtures::{cornell, furnace_box, on_threads};
+use crate::fixtures::{assert_light_adds_up, cornell, furnace_box, on_threads};
 
 fn run(scene: &Scene, settings: &HierarchicalSettings) -> HierarchicalSolution {
     let bvh = TriangleBvh::of_scene(scene);
@@ -33,15 +33,7 @@ fn run(scene: &Scene, settings: &HierarchicalSettings) -> HierarchicalSolution {
     let mesh = leaf_output_mesh(scene, &s);
     mesh.validate().unwrap();
     // Each vertex's B and H are means of the same leaves: B = E + ρ H.
-    for k in 0..mesh.vertex_count() {
-        let p = &scene.patches[mesh.patch[k] as usize];
-        let (b, h) = (mesh.radiosity[k].as_dvec3(), mesh.irradiance[k].as_dvec3());
-        let expected = p.emission + p.reflectance * h;
-        assert!(
-            (b - expected).abs().max_element() <= 1e-5 * b.max_element().max(1.0),
-            "vertex {k}: B {b}, E + ρH {expected}"
-        );
-    }
+    assert_light_adds_up(scene, &mesh, "leaf mean");
     s
 }
 
