@@ -37,17 +37,32 @@ impl OutputMesh {
         self.positions.len()
     }
 
+    /// When the per-vertex arrays differ in length, a message giving each
+    /// length.
+    pub fn length_mismatch(&self) -> Option<String> {
+        let n = self.positions.len();
+        let lengths = [
+            self.normals.len(),
+            self.radiosity.len(),
+            self.irradiance.len(),
+            self.patch.len(),
+        ];
+        lengths.iter().any(|&l| l != n).then(|| {
+            let [normals, radiosities, irradiances, patches] = lengths;
+            format!(
+                "per-vertex arrays differ in length ({n} positions, {normals} normals, \
+                 {radiosities} radiosities, {irradiances} irradiances, {patches} patch indices)"
+            )
+        })
+    }
+
     /// Checks the invariants of the module doc; the first violation is
     /// returned as a message.
     pub fn validate(&self) -> Result<(), String> {
-        let n = self.positions.len();
-        if self.normals.len() != n
-            || self.patch.len() != n
-            || self.radiosity.len() != n
-            || self.irradiance.len() != n
-        {
-            return Err("per-vertex arrays differ in length".into());
+        if let Some(message) = self.length_mismatch() {
+            return Err(message);
         }
+        let n = self.positions.len();
         for k in 0..n {
             if !self.positions[k].is_finite() {
                 return Err(format!("vertex {k}: non-finite position"));

@@ -336,18 +336,8 @@ fn check(mesh: &OutputMesh, exposure: f32, bin_name: &str) -> Result<()> {
         ));
     }
     let n = mesh.positions.len();
-    if mesh.normals.len() != n
-        || mesh.radiosity.len() != n
-        || mesh.irradiance.len() != n
-        || mesh.patch.len() != n
-    {
-        return fail(format!(
-            "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} irradiances, {} patch indices)",
-            mesh.normals.len(),
-            mesh.radiosity.len(),
-            mesh.irradiance.len(),
-            mesh.patch.len()
-        ));
+    if let Some(message) = mesh.length_mismatch() {
+        return fail(message);
     }
     if n == 0 || mesh.triangles.is_empty() {
         return fail(format!(

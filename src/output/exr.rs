@@ -144,21 +144,8 @@ fn solution_part(
 /// missing vertex, or a count exceeds what an EXR `int` attribute holds.
 pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
     let n = mesh.positions.len();
-    if mesh.normals.len() != n
-        || mesh.radiosity.len() != n
-        || mesh.irradiance.len() != n
-        || mesh.patch.len() != n
-    {
-        return Err(Error::encode(
-            SOLUTION,
-            format!(
-                "per-vertex arrays differ in length ({n} positions, {} normals, {} radiosities, {} irradiances, {} patch indices)",
-                mesh.normals.len(),
-                mesh.radiosity.len(),
-                mesh.irradiance.len(),
-                mesh.patch.len()
-            ),
-        ));
+    if let Some(message) = mesh.length_mismatch() {
+        return Err(Error::encode(SOLUTION, message));
     }
     if let Some((t, tri)) = mesh
         .triangles
