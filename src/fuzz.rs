@@ -89,6 +89,7 @@ pub fn fuzz_pipeline(data: &[u8]) -> std::result::Result<(), String> {
                 surface: k as u32,
                 reflectance,
                 emitted_radiance,
+                origin: Default::default(),
             });
         }
     }
@@ -182,6 +183,7 @@ fn fuzz_scene() -> crate::error::Result<Scene> {
             surface,
             reflectance: DVec3::splat(0.5),
             emitted_radiance: DVec3::splat(f64::from(material)),
+            origin: Default::default(),
         })
     };
     let mut tris = Vec::new();
@@ -211,6 +213,7 @@ fn fuzz_scene() -> crate::error::Result<Scene> {
         surface: 4,
         reflectance: DVec3::splat(0.5),
         emitted_radiance: DVec3::ZERO,
+        origin: Default::default(),
     });
     let materials = (0..2)
         .map(|m| Material {

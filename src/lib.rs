@@ -93,6 +93,8 @@ pub mod reference;
 
 pub mod output;
 
+pub mod lightmap;
+
 pub mod report;
 
 // The job, and the tools around it.

@@ -38,6 +38,9 @@ pub struct PhaseTimes {
     pub output_mesh: f64,
     /// Rendering the default view and the snapshots.
     pub render: f64,
+    /// With `--lightmap`: charting, packing and filling the atlases.
+    #[serde(default)]
+    pub lightmap: f64,
     /// Writing the outputs.
     pub write: f64,
     /// The whole run.
@@ -187,6 +190,9 @@ pub struct Report {
     pub mean_row_sum: f64,
     /// The view of the main render.
     pub view: Option<View>,
+    /// With `--lightmap`: the atlas (`null` without).
+    #[serde(default)]
+    pub lightmap: Option<crate::lightmap::LightmapStats>,
     /// Display exposure of `render.png` and the bake's `COLOR_0`: the
     /// solution's own (`output::png::solution_exposure`) or `--exposure`.
     pub exposure: f32,

@@ -45,6 +45,7 @@ fn pairs_scene(faces: &[([[DVec3; 3]; 2], bool)]) -> Scene {
                 surface: k as u32,
                 reflectance: DVec3::splat(0.5),
                 emitted_radiance: if emits { DVec3::ONE } else { DVec3::ZERO },
+                origin: Default::default(),
             });
         }
     }
@@ -493,6 +494,7 @@ fn block_winding_does_not_change_floor_segments() {
                 surface: t.surface,
                 reflectance: m.reflectance,
                 emitted_radiance: m.emitted_radiance,
+                origin: Default::default(),
             }
         })
         .collect();
@@ -539,6 +541,7 @@ fn blocked_wedges_end_on_the_first_surface() {
             surface: t.surface,
             reflectance: DVec3::splat(0.5),
             emitted_radiance: scene.materials[t.material as usize].emitted_radiance,
+            origin: Default::default(),
         })
         .collect();
     for t in plate {
@@ -548,6 +551,7 @@ fn blocked_wedges_end_on_the_first_surface() {
             surface: 3,
             reflectance: DVec3::splat(0.5),
             emitted_radiance: DVec3::ZERO,
+            origin: Default::default(),
         });
     }
     scene.surfaces.push(Surface {

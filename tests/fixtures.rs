@@ -92,6 +92,7 @@ pub fn furnace_box_rgb(size: DVec3, le: DVec3, rho: f64) -> Scene {
                 surface: k as u32,
                 reflectance: DVec3::splat(rho),
                 emitted_radiance: le,
+                origin: Default::default(),
             });
         }
     }
@@ -127,6 +128,7 @@ fn grid(q: [DVec3; 4], n: usize, surface: u32, material: u32, out: &mut Vec<Inpu
                     surface,
                     reflectance: DVec3::ZERO,
                     emitted_radiance: DVec3::ZERO,
+                    origin: Default::default(),
                 });
             }
         }

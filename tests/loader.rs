@@ -10,22 +10,23 @@ use nusselt::load::{LoadOptions, load_scene, load_scene_from_slice};
 use nusselt::scene::{Scene, Shape, Side};
 use serde_json::{Value, json};
 
-/// Builds small glTF documents with one binary buffer.
+/// Builds small glTF documents with one binary buffer (also used by the
+/// bake's round-trip tests).
 #[derive(Default)]
-struct Gltf {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-    meshes: Vec<Value>,
-    nodes: Vec<Value>,
-    materials: Vec<Value>,
-    textures: Vec<Value>,
-    images: Vec<Value>,
-    samplers: Vec<Value>,
-    cameras: Vec<Value>,
-    extensions_used: Vec<&'static str>,
+pub(crate) struct Gltf {
+    pub(crate) bin: Vec<u8>,
+    pub(crate) views: Vec<Value>,
+    pub(crate) accessors: Vec<Value>,
+    pub(crate) meshes: Vec<Value>,
+    pub(crate) nodes: Vec<Value>,
+    pub(crate) materials: Vec<Value>,
+    pub(crate) textures: Vec<Value>,
+    pub(crate) images: Vec<Value>,
+    pub(crate) samplers: Vec<Value>,
+    pub(crate) cameras: Vec<Value>,
+    pub(crate) extensions_used: Vec<&'static str>,
     /// Scene root nodes; `None`: every node added with `root`.
-    roots: Vec<usize>,
+    pub(crate) roots: Vec<usize>,
 }
 
 const QUAD: [[f32; 3]; 4] = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
@@ -33,7 +34,7 @@ const QUAD_UV: [[f32; 2]; 4] = [[0., 1.], [1., 1.], [1., 0.], [0., 0.]];
 const QUAD_INDICES: [u16; 6] = [0, 1, 2, 0, 2, 3];
 
 impl Gltf {
-    fn view(&mut self, bytes: &[u8]) -> usize {
+    pub(crate) fn view(&mut self, bytes: &[u8]) -> usize {
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
@@ -43,12 +44,12 @@ impl Gltf {
         self.views.len() - 1
     }
 
-    fn accessor(&mut self, a: Value) -> usize {
+    pub(crate) fn accessor(&mut self, a: Value) -> usize {
         self.accessors.push(a);
         self.accessors.len() - 1
     }
 
-    fn positions(&mut self, p: &[[f32; 3]]) -> usize {
+    pub(crate) fn positions(&mut self, p: &[[f32; 3]]) -> usize {
         let bytes: Vec<u8> = p.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
         let view = self.view(&bytes);
         let lo = (0..3).map(|k| p.iter().map(|v| v[k]).fold(f32::INFINITY, f32::min));
@@ -60,7 +61,7 @@ impl Gltf {
         }))
     }
 
-    fn uvs(&mut self, uv: &[[f32; 2]]) -> usize {
+    pub(crate) fn uvs(&mut self, uv: &[[f32; 2]]) -> usize {
         let bytes: Vec<u8> = uv.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
         let view = self.view(&bytes);
         self.accessor(
@@ -68,7 +69,7 @@ impl Gltf {
         )
     }
 
-    fn indices(&mut self, i: &[u16]) -> usize {
+    pub(crate) fn indices(&mut self, i: &[u16]) -> usize {
         let bytes: Vec<u8> = i.iter().flat_map(|c| c.to_le_bytes()).collect();
         let view = self.view(&bytes);
         self.accessor(
@@ -76,23 +77,23 @@ impl Gltf {
         )
     }
 
-    fn material(&mut self, m: Value) -> usize {
+    pub(crate) fn material(&mut self, m: Value) -> usize {
         self.materials.push(m);
         self.materials.len() - 1
     }
 
-    fn emitter(&mut self) -> usize {
+    pub(crate) fn emitter(&mut self) -> usize {
         self.material(json!({"name": "Light", "emissiveFactor": [1.0, 1.0, 1.0],
             "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0}}))
     }
 
-    fn grey(&mut self) -> usize {
+    pub(crate) fn grey(&mut self) -> usize {
         self.material(json!({"name": "Grey",
             "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0}}))
     }
 
     /// A mesh with one indexed quad primitive (with texture coordinates).
-    fn quad_mesh(&mut self, name: Option<&str>, material: Option<usize>) -> usize {
+    pub(crate) fn quad_mesh(&mut self, name: Option<&str>, material: Option<usize>) -> usize {
         let pos = self.positions(&QUAD);
         let uv = self.uvs(&QUAD_UV);
         let idx = self.indices(&QUAD_INDICES);
@@ -103,7 +104,7 @@ impl Gltf {
         self.mesh(name, vec![prim])
     }
 
-    fn mesh(&mut self, name: Option<&str>, primitives: Vec<Value>) -> usize {
+    pub(crate) fn mesh(&mut self, name: Option<&str>, primitives: Vec<Value>) -> usize {
         let mut mesh = json!({"primitives": primitives});
         if let Some(n) = name {
             mesh["name"] = json!(n);
@@ -112,19 +113,19 @@ impl Gltf {
         self.meshes.len() - 1
     }
 
-    fn node(&mut self, n: Value) -> usize {
+    pub(crate) fn node(&mut self, n: Value) -> usize {
         self.nodes.push(n);
         self.nodes.len() - 1
     }
 
-    fn root(&mut self, n: Value) -> usize {
+    pub(crate) fn root(&mut self, n: Value) -> usize {
         let i = self.node(n);
         self.roots.push(i);
         i
     }
 
     /// An emitting quad far from everything else, so scenes are valid.
-    fn light(&mut self) -> usize {
+    pub(crate) fn light(&mut self) -> usize {
         let m = self.emitter();
         let mesh = self.quad_mesh(Some("LightMesh"), Some(m));
         self.root(
@@ -134,7 +135,13 @@ impl Gltf {
     }
 
     /// A PNG image (8-bit sRGB RGB) embedded through a buffer view.
-    fn png_texture(&mut self, w: u32, h: u32, texels: &[[u8; 3]], sampler: Option<Value>) -> usize {
+    pub(crate) fn png_texture(
+        &mut self,
+        w: u32,
+        h: u32,
+        texels: &[[u8; 3]],
+        sampler: Option<Value>,
+    ) -> usize {
         let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(texels[(y * w + x) as usize]));
         let mut png = Vec::new();
         img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
@@ -151,7 +158,7 @@ impl Gltf {
         self.textures.len() - 1
     }
 
-    fn json(&self, buffer: Value) -> Value {
+    pub(crate) fn json(&self, buffer: Value) -> Value {
         let mut root = json!({
             "asset": {"version": "2.0"},
             "scene": 0,
@@ -180,7 +187,7 @@ impl Gltf {
     }
 
     /// `.gltf` bytes with the buffer as a base64 data URI.
-    fn embedded(&self) -> Vec<u8> {
+    pub(crate) fn embedded(&self) -> Vec<u8> {
         let uri = format!(
             "data:application/octet-stream;base64,{}",
             base64::Engine::encode(&base64::engine::general_purpose::STANDARD, &self.bin)
@@ -189,7 +196,7 @@ impl Gltf {
     }
 
     /// `.glb` bytes.
-    fn glb(&self) -> Vec<u8> {
+    pub(crate) fn glb(&self) -> Vec<u8> {
         let mut json =
             serde_json::to_vec(&self.json(json!({"byteLength": self.bin.len()}))).unwrap();
         while json.len() % 4 != 0 {
@@ -213,7 +220,7 @@ impl Gltf {
         out
     }
 
-    fn load(&self) -> nusselt::Result<Scene> {
+    pub(crate) fn load(&self) -> nusselt::Result<Scene> {
         load_scene_from_slice(&self.embedded(), None, &LoadOptions::default())
     }
 }
@@ -920,6 +927,7 @@ fn hostile_huge_finite_coordinates_are_refused_before_the_bvh() {
             surface: 0,
             reflectance: DVec3::splat(0.5),
             emitted_radiance: DVec3::splat(k as f64),
+            origin: Default::default(),
         });
     }
     let material = nusselt::scene::Material {

@@ -768,7 +768,13 @@ fn baked_gltf_reparses_with_the_mesh_values() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = room_mesh(5, Vec3::new(5.0, 2.5, 3.0));
     let exposure = 0.37;
-    let (json, bin) = baked::encode_baked_gltf(&mesh, exposure, "baked.bin").unwrap();
+    let (json, bin) = baked::encode_baked_gltf(
+        &mesh,
+        &baked::BakeLayout::flat(&mesh),
+        exposure,
+        "baked.bin",
+    )
+    .unwrap();
     let mut set = OutputSet::create(dir.path()).unwrap();
     set.stage("baked.gltf", &json).unwrap();
     set.stage("baked.bin", &bin).unwrap();
@@ -853,7 +859,9 @@ fn baked_gltf_reparses_with_the_mesh_values() {
 #[test]
 fn baked_gltf_json_records_views_and_exposure() {
     let mesh = room_mesh(2, Vec3::ONE);
-    let (json, bin) = baked::encode_baked_gltf(&mesh, 1.25, "my-bake.bin").unwrap();
+    let (json, bin) =
+        baked::encode_baked_gltf(&mesh, &baked::BakeLayout::flat(&mesh), 1.25, "my-bake.bin")
+            .unwrap();
     let root: serde_json::Value = serde_json::from_slice(&json).unwrap();
     assert_eq!(root["asset"]["version"], "2.0");
     assert_eq!(
@@ -890,27 +898,39 @@ fn baked_gltf_json_records_views_and_exposure() {
 #[test]
 fn baked_gltf_rejects_what_it_cannot_write() {
     let empty = OutputMesh::default();
-    let err = baked::encode_baked_gltf(&empty, 1.0, "baked.bin").unwrap_err();
+    let err = baked::encode_baked_gltf(&empty, &baked::BakeLayout::flat(&empty), 1.0, "baked.bin")
+        .unwrap_err();
     assert!(matches!(err, Error::Encode { .. }));
     assert!(err.to_string().contains("empty"), "{err}");
 
     let mesh = room_mesh(1, Vec3::ONE);
     for bad in ["", "../baked.bin", "a b.bin", "x/y.bin"] {
         assert!(
-            baked::encode_baked_gltf(&mesh, 1.0, bad).is_err(),
+            baked::encode_baked_gltf(&mesh, &baked::BakeLayout::flat(&mesh), 1.0, bad).is_err(),
             "{bad:?}"
         );
     }
     assert!(matches!(
-        baked::encode_baked_gltf(&mesh, f32::NAN, "baked.bin"),
+        baked::encode_baked_gltf(
+            &mesh,
+            &baked::BakeLayout::flat(&mesh),
+            f32::NAN,
+            "baked.bin"
+        ),
         Err(Error::Setting(_))
     ));
     let mut broken = mesh.clone();
     broken.radiosity[0].x = f32::INFINITY;
-    assert!(baked::encode_baked_gltf(&broken, 1.0, "baked.bin").is_err());
+    assert!(
+        baked::encode_baked_gltf(&broken, &baked::BakeLayout::flat(&broken), 1.0, "baked.bin")
+            .is_err()
+    );
     let mut broken = mesh.clone();
     broken.triangles[0][1] = 10_000;
-    assert!(baked::encode_baked_gltf(&broken, 1.0, "baked.bin").is_err());
+    assert!(
+        baked::encode_baked_gltf(&broken, &baked::BakeLayout::flat(&broken), 1.0, "baked.bin")
+            .is_err()
+    );
 }
 
 // -------------------------------------------------------- atomic writing
@@ -1077,7 +1097,13 @@ fn sample_output_folder_is_complete() {
             .map(|b| out_png::luminance((*b / PI).to_array())),
     );
     let frame = random_frame(64, 40, 11);
-    let (gltf, bin) = baked::encode_baked_gltf(&mesh, exposure, "baked.bin").unwrap();
+    let (gltf, bin) = baked::encode_baked_gltf(
+        &mesh,
+        &baked::BakeLayout::flat(&mesh),
+        exposure,
+        "baked.bin",
+    )
+    .unwrap();
 
     let mut set = OutputSet::create(&dir).unwrap();
     set.stage("solution.exr", &out_exr::encode_solution(&mesh).unwrap())

@@ -190,6 +190,7 @@ fn two_squares(double_sided_receiver: bool) -> Scene {
                 surface: k,
                 reflectance: rho,
                 emitted_radiance: le,
+                origin: Default::default(),
             });
         }
     }

@@ -4,6 +4,8 @@
 // Shared helpers: slow-test gate, scenes, glTF writers/readers, the binary, thread pools.
 mod fixtures;
 
+// The bake keeps the input's nodes, transforms, cameras, materials and texture coordinates.
+mod bake;
 // Resource budgets (links, elements, memory) stop refinement within limits.
 mod budgets;
 // Charts: convergence charts from synthetic reports, line charts, log axes, errors.
@@ -38,6 +40,8 @@ mod importance;
 mod loader;
 // The output mesh in its three modes: validity, contact lines, adaptivity.
 mod meshing;
+// Lightmaps: the atlas agrees with the mesh, no holes, TEXCOORD_1, the bake's atlas.
+mod lightmap;
 // Output encoders, readers and atomic writing.
 mod output;
 // The penumbra scene's closed form and the solver's error against it.

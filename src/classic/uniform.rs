@@ -268,6 +268,7 @@ mod tests {
                 surface: 0,
                 reflectance: DVec3::splat(0.5),
                 emitted_radiance: DVec3::ONE,
+                origin: Default::default(),
             })
             .collect();
         let m = Material {

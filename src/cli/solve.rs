@@ -65,6 +65,12 @@ pub struct SolveArgs {
     /// baked.gltf + baked.bin.
     #[arg(long)]
     glb: bool,
+    /// Also write lightmap atlases RES texels square: lightmap-B.exr
+    /// (radiosity), lightmap-H.exr (irradiance), lightmap.png (display),
+    /// over the input's TEXCOORD_1 or generated charts; the bake gets them
+    /// as TEXCOORD_1 and an emissive texture.
+    #[arg(long, value_name = "RES")]
+    lightmap: Option<u32>,
     /// Hierarchical: refine only as much as the view (the scene's camera or
     /// the view flags) needs: link errors count by the importance of their
     /// receiver, seen directly or reflecting toward what is seen
@@ -143,6 +149,7 @@ impl SolveArgs {
             importance: self.importance,
             exposure: self.exposure,
             glb: self.glb,
+            lightmap: self.lightmap,
         };
         // Both methods' parts, whichever runs: a bad flag is an error even
         // where it does not apply.

@@ -540,6 +540,7 @@ mod tests {
                     surface,
                     reflectance: DVec3::splat(0.5),
                     emitted_radiance: DVec3::splat(f64::from(surface / 2)),
+                    origin: Default::default(),
                 });
             }
         };

@@ -4,7 +4,9 @@
 //! mapping it, as the contract prescribes, onto the format-free scene model:
 //! world-space triangles with their averaged material values, materials,
 //! surfaces (one per node with a mesh) and perspective cameras, handed to
-//! [`Scene::build`].
+//! [`Scene::build`]; and the document's structure without its geometry
+//! ([`SourceDocument`]: nodes, cameras, materials, every image's bytes), with
+//! each triangle's primitive and `TEXCOORD_0`, for the bake.
 //!
 //! Invariants:
 //! - Untrusted input never panics and never drives an allocation: every
@@ -38,7 +40,9 @@ use gltf::{Document, Semantic};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::scene::{Camera, InputTriangle, MAX_COORDINATE, Material, Scene, Surface};
+use crate::scene::{
+    Camera, InputTriangle, MAX_COORDINATE, Material, Scene, SourceDocument, Surface, TriangleOrigin,
+};
 
 use self::accessor::Expect;
 use self::texture::{Sampler, Texture, UvTransform};
@@ -130,18 +134,55 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         surfaces: Vec::new(),
         cameras: Vec::new(),
         textures: HashMap::new(),
+        world: vec![None; document.nodes().len()],
         warnings: Vec::new(),
         dropped_indices: 0,
     };
     loader.traverse().map_err(scene_error)?;
+    let images = (0..document.images().len())
+        .map(|i| loader.image_bytes(i))
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(scene_error)?;
+    let source = SourceDocument {
+        json: without_geometry(&document),
+        images,
+        world: std::mem::take(&mut loader.world),
+        materials: loader.material_sources(),
+    };
     let warnings = loader.finish_warnings();
-    Scene::build(
+    let mut scene = Scene::build(
         loader.triangles,
         loader.materials.into_iter().map(|m| m.material).collect(),
         loader.surfaces,
         loader.cameras,
         warnings,
-    )
+    )?;
+    scene.source = Some(Arc::new(source));
+    Ok(scene)
+}
+
+/// The document with its meshes, accessors, buffer views, buffers, skins
+/// and animations removed, and the node fields that refer to them (mesh,
+/// skin, morph weights) cleared; images lose their source (the bake
+/// embeds their bytes).
+fn without_geometry(document: &Document) -> gltf::json::Root {
+    let mut json = document.as_json().clone();
+    json.meshes.clear();
+    json.accessors.clear();
+    json.buffer_views.clear();
+    json.buffers.clear();
+    json.skins.clear();
+    json.animations.clear();
+    for node in &mut json.nodes {
+        node.mesh = None;
+        node.skin = None;
+        node.weights = None;
+    }
+    for image in &mut json.images {
+        image.buffer_view = None;
+        image.uri = None;
+    }
+    json
 }
 
 /// Splits GLB or reads JSON, then validates. Guards the `gltf` crate's own
@@ -340,6 +381,8 @@ struct Loader<'a> {
     cameras: Vec<Camera>,
     /// Decoded textures by image index.
     textures: HashMap<usize, Arc<Texture>>,
+    /// World transform of each node reached, by node index.
+    world: Vec<Option<DMat4>>,
     warnings: Vec<String>,
     /// Trailing indices that did not form a whole triangle.
     dropped_indices: usize,
@@ -390,6 +433,7 @@ impl Loader<'_> {
                     node_label(&node)
                 ));
             }
+            self.world[index] = Some(world);
             if let Some(mesh) = node.mesh() {
                 self.add_mesh(&node, &mesh, &world)?;
             }
@@ -529,6 +573,13 @@ impl Loader<'_> {
             &corners,
             n_vertices,
         )?;
+        let tex_coords = self.tex_coords(primitive, 0, n_vertices)?;
+        let lightmap_coords = self.tex_coords(primitive, 1, n_vertices)?;
+        let origin = |c: &[u32; 3]| TriangleOrigin {
+            primitive: primitive.index() as u32,
+            tex_coords: tex_coords.as_ref().map(|uv| c.map(|i| uv[i as usize])),
+            lightmap_coords: lightmap_coords.as_ref().map(|uv| c.map(|i| uv[i as usize])),
+        };
         let max = self.options.max_reflectance;
         self.triangles.reserve(corners.len());
         for (t, c) in corners.iter().enumerate() {
@@ -544,6 +595,7 @@ impl Loader<'_> {
                 surface,
                 reflectance: rho,
                 emitted_radiance: emitted,
+                origin: origin(c),
             });
         }
         Ok(())
@@ -620,16 +672,32 @@ impl Loader<'_> {
         if let Some(t) = self.textures.get(&index) {
             return Ok(t.clone());
         }
+        let bytes = self.image_bytes(index)?;
+        let texture = Arc::new(
+            Texture::decode(&bytes)
+                .map_err(|e| format!("{}: cannot decode: {e}", self.image_label(index)))?,
+        );
+        self.textures.insert(index, texture.clone());
+        Ok(texture)
+    }
+
+    /// `image N ('name')`, for messages.
+    fn image_label(&self, index: usize) -> String {
+        match self.document.images().nth(index).and_then(|i| i.name()) {
+            Some(name) => format!("image {index} ('{}')", short(name)),
+            None => format!("image {index}"),
+        }
+    }
+
+    /// The encoded bytes of image `index`, wherever the file keeps them.
+    fn image_bytes(&self, index: usize) -> Result<Vec<u8>, String> {
         let image = self
             .document
             .images()
             .nth(index)
             .ok_or_else(|| format!("image {index} does not exist"))?;
-        let label = match image.name() {
-            Some(name) => format!("image {index} ('{name}')"),
-            None => format!("image {index}"),
-        };
-        let bytes: Vec<u8> = match image.source() {
+        let label = self.image_label(index);
+        Ok(match image.source() {
             gltf::image::Source::View { view, .. } => {
                 let data = self
                     .buffers
@@ -649,11 +717,62 @@ impl Loader<'_> {
                     })?
                     .0
             }
+        })
+    }
+
+    /// The primitive's `TEXCOORD_<set>` as f32 pairs (normalized integers
+    /// mapped to [0, 1]), or `None` when it has none.
+    fn tex_coords(
+        &self,
+        primitive: &gltf::Primitive<'_>,
+        set: u32,
+        n_vertices: usize,
+    ) -> Result<Option<Vec<[f32; 2]>>, String> {
+        let Some(acc) = primitive.get(&Semantic::TexCoords(set)) else {
+            return Ok(None);
         };
-        let texture =
-            Arc::new(Texture::decode(&bytes).map_err(|e| format!("{label}: cannot decode: {e}"))?);
-        self.textures.insert(index, texture.clone());
-        Ok(texture)
+        let role = format!("TEXCOORD_{set}");
+        accessor::check(
+            &acc,
+            &Expect {
+                role: role.clone(),
+                types: &[DataType::F32, DataType::U8, DataType::U16],
+                dimensions: Dimensions::Vec2,
+            },
+            self.buffers,
+        )?;
+        if acc.data_type() != DataType::F32 && !acc.normalized() {
+            return Err(format!(
+                "{role} accessor {} holds integers that are not normalized",
+                acc.index()
+            ));
+        }
+        if acc.count() != n_vertices {
+            return Err(format!(
+                "{role} has {} elements but POSITION has {n_vertices}",
+                acc.count()
+            ));
+        }
+        let buffers = self.buffers;
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let uvs: Vec<[f32; 2]> = reader
+            .read_tex_coords(set)
+            .ok_or_else(|| format!("{role} data is unreadable"))?
+            .into_f32()
+            .collect();
+        if let Some(i) = uvs.iter().position(|uv| !uv.iter().all(|c| c.is_finite())) {
+            return Err(format!("vertex {i} has a non-finite {role} {:?}", uvs[i]));
+        }
+        Ok(Some(uvs))
+    }
+
+    /// The glTF material index behind each of our materials.
+    fn material_sources(&self) -> Vec<Option<usize>> {
+        let mut sources = vec![None; self.materials.len()];
+        for (&gltf_index, &ours) in &self.material_ids {
+            sources[ours as usize] = gltf_index;
+        }
+        sources
     }
 
     /// Our index of the primitive's material, converting it on first use.

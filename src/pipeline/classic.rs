@@ -109,7 +109,7 @@ pub(super) fn solve(
         "height": view.height,
     });
     report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
-    Ok(finish(report, view, out, frame, snapshots, start, settings))
+    finish(scene, report, view, out, frame, snapshots, start, settings)
 }
 
 /// Renders after the requested iterations, with their iteration number.

@@ -79,7 +79,7 @@ pub(super) fn solve(
     };
     report.settings = settings_json(settings, &hs, &solution, &view);
     report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
-    Ok(finish(report, view, out, frame, snapshots, start, settings))
+    finish(scene, report, view, out, frame, snapshots, start, settings)
 }
 
 /// What the solve did, into the report: importance, phase times, power,

@@ -23,8 +23,10 @@ use crate::classic::solve::{ClassicMethod, Convergence};
 use crate::discontinuity::DiscontinuitySettings;
 use crate::error::{Error, Result};
 use crate::hierarchical::HierarchicalSettings;
+use crate::lightmap::Lightmap;
 use crate::mesh::OutputMesh;
 use crate::meshing::MeshSettings;
+use crate::output::baked::BakeLayout;
 use crate::output::{self, OutputSet};
 use crate::render::RenderSettings;
 use crate::render::frame::Frame;
@@ -121,6 +123,8 @@ pub struct SolveSettings {
     pub exposure: Option<f32>,
     /// Bake into one `baked.glb` ([`SolveRun::glb`]).
     pub glb: bool,
+    /// Lightmap atlases of this side in texels ([`Lightmap`]).
+    pub lightmap: Option<u32>,
 }
 
 impl SolveSettings {
@@ -129,6 +133,9 @@ impl SolveSettings {
     /// error names the command-line option.
     pub fn validate(&self) -> Result<()> {
         check_exposure(self.exposure)?;
+        if let Some(resolution) = self.lightmap {
+            crate::lightmap::check_resolution(resolution)?;
+        }
         match self.method {
             Method::Hierarchical => {
                 self.hierarchical.validate()?;
@@ -172,6 +179,7 @@ impl Default for SolveSettings {
             importance: false,
             exposure: None,
             glb: false,
+            lightmap: None,
         }
     }
 }
@@ -194,6 +202,10 @@ pub struct SolveRun {
     /// Write the bake as one `baked.glb` instead of `baked.gltf` +
     /// `baked.bin`.
     pub glb: bool,
+    /// Where the mesh's vertices go in the bake (the scene's nodes).
+    pub bake: BakeLayout,
+    /// With `--lightmap`: the atlases (their coordinates are in `bake`).
+    pub lightmap: Option<Lightmap>,
 }
 
 fn secs(t: Instant) -> f64 {
@@ -245,8 +257,11 @@ fn convergence_report<'a>(
 }
 
 /// The common end of every solve, right after the main render: the
-/// wireframe overlay (when asked for), exposure, view and total time.
+/// wireframe overlay (when asked for), exposure, view, the bake's layout on
+/// the scene's nodes, the lightmap (when asked for) and total time.
+#[allow(clippy::too_many_arguments)]
 fn finish(
+    scene: &Scene,
     mut report: Report,
     view: View,
     mesh: OutputMesh,
@@ -254,7 +269,7 @@ fn finish(
     snapshots: Vec<(usize, Frame)>,
     start: Instant,
     settings: &SolveSettings,
-) -> SolveRun {
+) -> Result<SolveRun> {
     let t = Instant::now();
     let overlay = settings
         .wireframe
@@ -264,15 +279,32 @@ fn finish(
         .exposure
         .unwrap_or_else(|| output::png::solution_exposure(&mesh));
     report.view = Some(view);
+    let mut bake = BakeLayout::of_scene(scene, &mesh)?;
+    let lightmap = match settings.lightmap {
+        Some(resolution) => {
+            let t = Instant::now();
+            let lightmap = Lightmap::build(scene, &mesh, resolution)?;
+            bake.set_lightmap(
+                lightmap.uv.clone(),
+                output::png::encode_png(&lightmap.display(), report.exposure)?,
+            );
+            report.lightmap = Some(lightmap.stats.clone());
+            report.times.lightmap = secs(t);
+            Some(lightmap)
+        }
+        None => None,
+    };
     report.times.total = secs(start);
-    SolveRun {
+    Ok(SolveRun {
         mesh,
         frame,
         wireframe: overlay,
         snapshots,
         report,
         glb: settings.glb,
-    }
+        bake,
+        lightmap,
+    })
 }
 
 /// `--exposure`: positive and finite when given.
@@ -305,12 +337,24 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     if run.glb {
         set.stage(
             "baked.glb",
-            &output::baked::encode_baked_glb(&run.mesh, exposure)?,
+            &output::baked::encode_baked_glb(&run.mesh, &run.bake, exposure)?,
         )?;
     } else {
-        let (gltf, bin) = output::baked::encode_baked_gltf(&run.mesh, exposure, "baked.bin")?;
+        let (gltf, bin) =
+            output::baked::encode_baked_gltf(&run.mesh, &run.bake, exposure, "baked.bin")?;
         set.stage("baked.bin", &bin)?;
         set.stage("baked.gltf", &gltf)?;
+    }
+    if let Some(lightmap) = &run.lightmap {
+        set.stage(
+            "lightmap-B.exr",
+            &output::exr::encode_image(&lightmap.radiosity)?,
+        )?;
+        set.stage(
+            "lightmap-H.exr",
+            &output::exr::encode_image(&lightmap.irradiance)?,
+        )?;
+        set.stage("lightmap.png", run.bake.lightmap_png().unwrap_or_default())?;
     }
     set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
     let png = match &run.wireframe {

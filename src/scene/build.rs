@@ -82,6 +82,7 @@ impl Scene {
                 surface: t.surface,
                 front_patch: u32::MAX,
                 back_patch: None,
+                origin: t.origin,
             })
             .collect();
         let mut patches = Vec::with_capacity(pairs.len());
@@ -120,6 +121,7 @@ impl Scene {
             bounds,
             stats,
             warnings,
+            source: None,
         })
     }
 }

@@ -32,8 +32,12 @@
 mod build;
 mod polygon;
 mod quads;
+mod source;
 
 pub use polygon::{polygon_area_normal, polygon_centroid};
+pub use source::{SourceDocument, TriangleOrigin, interpolate_on_patch};
+
+use std::sync::Arc;
 
 use glam::DVec3;
 
@@ -74,6 +78,8 @@ pub struct InputTriangle {
     pub reflectance: DVec3,
     /// L_e over this triangle (radiance, W / (m² sr) per channel).
     pub emitted_radiance: DVec3,
+    /// Its primitive and texture coordinates in the input file.
+    pub origin: TriangleOrigin,
 }
 
 /// Which side of its input triangle(s) a patch represents.
@@ -108,6 +114,8 @@ pub struct SceneTriangle {
     pub front_patch: u32,
     /// The back patch, for double-sided materials.
     pub back_patch: Option<u32>,
+    /// Its primitive and texture coordinates in the input file.
+    pub origin: TriangleOrigin,
 }
 
 /// A planar, one-sided radiosity surface: a triangle or a convex quad.
@@ -218,6 +226,9 @@ pub struct Scene {
     /// Non-fatal findings (dropped triangles, clamped reflectances, ignored
     /// material features), one line each.
     pub warnings: Vec<String>,
+    /// The input document's structure, for the bake; `None` for a scene
+    /// not loaded from glTF.
+    pub source: Option<Arc<SourceDocument>>,
 }
 
 /// Most triangles a scene may hold (after instancing; the loader stops
@@ -270,6 +281,7 @@ mod tests {
             surface: 0,
             reflectance: DVec3::splat(0.5),
             emitted_radiance: DVec3::splat(1.0),
+            origin: Default::default(),
         }
     }
 

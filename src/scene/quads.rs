@@ -1,5 +1,6 @@
 //! Merging triangles into quad patches: pairs of adjacent, coplanar
-//! triangles of one surface and material whose union is a convex quad.
+//! triangles of one surface, primitive and material whose union is a convex
+//! quad (so each patch, and each output vertex, comes from one primitive).
 //!
 //! Invariant: greedy and deterministic (triangles in input order, the
 //! longest edge first); a merged quad runs counter-clockwise like its
@@ -85,14 +86,17 @@ pub(super) fn pair_triangles(
 }
 
 /// The convex quad formed by `t1` and `t2` across `t1`'s edge `e`, if they
-/// share a surface and material and are coplanar.
+/// share a surface, primitive and material and are coplanar.
 fn merge_quad(
     t1: &InputTriangle,
     t2: &InputTriangle,
     e: usize,
     diagonal: f64,
 ) -> Option<[DVec3; 4]> {
-    if t1.material != t2.material || t1.surface != t2.surface {
+    if t1.material != t2.material
+        || t1.surface != t2.surface
+        || t1.origin.primitive != t2.origin.primitive
+    {
         return None;
     }
     let a = t1.positions[e];
