@@ -22,7 +22,10 @@ pub enum Error {
         message: String,
     },
     /// A scene without any emitting surface cannot be lit.
-    #[error("no emitting surfaces in the scene")]
+    #[error(
+        "no emitting surfaces in the scene (light comes from emissive materials: \
+         emissiveFactor, times KHR_materials_emissive_strength, above 0)"
+    )]
     NoEmitters,
     /// The scene has nothing to solve (every triangle was dropped or absent).
     #[error("no usable triangles in the scene")]

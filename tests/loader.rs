@@ -777,6 +777,54 @@ fn a_scene_without_emitters_is_an_error() {
 }
 
 #[test]
+fn punctual_lights_are_named_not_silently_dropped() {
+    // Lights are not read yet (issue 23): a scene lit only by them says so
+    // and names them; beside an emitter they are a named warning.
+    let (_, mut json) = valid_json();
+    json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
+        {"type": "point", "name": "Bulb", "intensity": 10.0},
+        {"type": "directional", "intensity": 3.0}]}});
+    json["nodes"].as_array_mut().unwrap().extend([
+        json!({"name": "B", "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+        json!({"name": "Sun", "extensions": {"KHR_lights_punctual": {"light": 1}}}),
+    ]);
+    json["scenes"][0]["nodes"] = json!([0, 1, 2]);
+    let scene = load_json(&json).unwrap();
+    let warning = scene
+        .warnings
+        .iter()
+        .find(|w| w.contains("KHR_lights_punctual"))
+        .expect("a warning names the lights");
+    assert!(
+        warning.contains("2 light(s)")
+            && warning.contains("point 'Bulb'")
+            && warning.contains("directional light 1"),
+        "{warning}"
+    );
+    // The bake drops the lights, and with them the nodes' references.
+    let source = scene.source.as_ref().unwrap();
+    assert!(source.json.nodes.iter().all(|n| n.extensions.is_none()));
+
+    // Without the emitter: an error naming what was looked for and found.
+    json["materials"][0]["emissiveFactor"] = json!([0.0, 0.0, 0.0]);
+    let message = scene_error(load_json(&json));
+    assert!(
+        message.contains("no emitting surfaces")
+            && message.contains("2 KHR_lights_punctual light(s)")
+            && message.contains("point 'Bulb'"),
+        "{message}"
+    );
+    // And with no light of any kind, the message says where light comes from.
+    let mut g = Gltf::default();
+    let m = g.grey();
+    let mesh = g.quad_mesh(None, Some(m));
+    g.root(json!({"mesh": mesh}));
+    let message = g.load().unwrap_err().to_string();
+    assert!(message.contains("emissiveFactor"), "{message}");
+}
+
+#[test]
 fn node_cycles_and_shared_children_are_errors() {
     let (_, mut json) = valid_json();
     // Node 0 (the quad) gets a parent 1 that is also its child.

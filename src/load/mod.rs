@@ -135,6 +135,7 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         cameras: Vec::new(),
         textures: HashMap::new(),
         world: vec![None; document.nodes().len()],
+        punctual_lights: Vec::new(),
         warnings: Vec::new(),
         dropped_indices: 0,
     };
@@ -149,14 +150,35 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         world: std::mem::take(&mut loader.world),
         materials: loader.material_sources(),
     };
-    let warnings = loader.finish_warnings();
-    let mut scene = Scene::build(
+    let lights = std::mem::take(&mut loader.punctual_lights);
+    let mut warnings = loader.finish_warnings();
+    if !lights.is_empty() {
+        warnings.push(format!(
+            "KHR_lights_punctual: {} light(s) not used ({}): only emissive materials light a \
+             scene yet",
+            lights.len(),
+            lights.join("; ")
+        ));
+    }
+    let built = Scene::build(
         loader.triangles,
         loader.materials.into_iter().map(|m| m.material).collect(),
         loader.surfaces,
         loader.cameras,
         warnings,
-    )?;
+    );
+    let mut scene = match built {
+        Err(Error::NoEmitters) if !lights.is_empty() => {
+            return Err(scene_error(format!(
+                "no emitting surfaces in the scene, and its {} KHR_lights_punctual light(s) \
+                 ({}) are not read yet: only emissive materials (emissiveFactor above 0) \
+                 light a scene",
+                lights.len(),
+                lights.join("; ")
+            )));
+        }
+        other => other?,
+    };
     scene.source = Some(Arc::new(source));
     Ok(scene)
 }
@@ -177,6 +199,8 @@ fn without_geometry(document: &Document) -> gltf::json::Root {
         node.mesh = None;
         node.skin = None;
         node.weights = None;
+        // Its light (KHR_lights_punctual), which the bake does not carry.
+        node.extensions = None;
     }
     for image in &mut json.images {
         image.buffer_view = None;
@@ -383,6 +407,9 @@ struct Loader<'a> {
     textures: HashMap<usize, Arc<Texture>>,
     /// World transform of each node reached, by node index.
     world: Vec<Option<DMat4>>,
+    /// The KHR_lights_punctual lights the reached nodes place, as
+    /// "point 'name'", in node order.
+    punctual_lights: Vec<String>,
     warnings: Vec<String>,
     /// Trailing indices that did not form a whole triangle.
     dropped_indices: usize,
@@ -439,6 +466,9 @@ impl Loader<'_> {
             }
             if let Some(camera) = node.camera() {
                 self.add_camera(&node, &camera, &world);
+            }
+            if let Some(light) = self.punctual_light(index) {
+                self.punctual_lights.push(light);
             }
             let children: Vec<_> = node.children().collect();
             stack.extend(children.into_iter().rev().map(|c| (c, world)));
@@ -764,6 +794,42 @@ impl Loader<'_> {
             return Err(format!("vertex {i} has a non-finite {role} {:?}", uvs[i]));
         }
         Ok(Some(uvs))
+    }
+
+    /// The KHR_lights_punctual light node `index` places, as "point 'name'"
+    /// (read from the JSON without the `gltf` crate's getters, which
+    /// unwrap).
+    fn punctual_light(&self, index: usize) -> Option<String> {
+        use gltf::json::extensions::scene::khr_lights_punctual::Type;
+        let json = self.document.as_json();
+        let light = json
+            .nodes
+            .get(index)?
+            .extensions
+            .as_ref()?
+            .khr_lights_punctual
+            .as_ref()?
+            .light;
+        let lights = &json
+            .extensions
+            .as_ref()?
+            .khr_lights_punctual
+            .as_ref()?
+            .lights;
+        let i = light.value();
+        let Some(light) = lights.get(i) else {
+            return Some(format!("light {i}, which the file does not define"));
+        };
+        let kind = match light.type_ {
+            gltf::json::validation::Checked::Valid(Type::Point) => "point",
+            gltf::json::validation::Checked::Valid(Type::Spot) => "spot",
+            gltf::json::validation::Checked::Valid(Type::Directional) => "directional",
+            gltf::json::validation::Checked::Invalid => "unknown",
+        };
+        Some(match &light.name {
+            Some(name) => format!("{kind} '{}'", short(name)),
+            None => format!("{kind} light {i}"),
+        })
     }
 
     /// The glTF material index behind each of our materials.
