@@ -30,7 +30,7 @@ use glam::{DVec2, DVec3, Vec2, Vec3};
 use crate::error::{Error, Result};
 use crate::mesh::OutputMesh;
 use crate::render::frame::Frame;
-use crate::scene::Scene;
+use crate::scene::{Scene, interpolate_on_patch};
 use crate::util::geometry::position_key;
 use crate::util::union_find::UnionFind;
 
@@ -110,12 +110,24 @@ pub fn check_resolution(resolution: u32) -> Result<()> {
 
 impl Lightmap {
     /// The atlases of `mesh` (an output mesh of `scene`), `resolution`
-    /// texels square. Fails when the resolution is out of range or the
-    /// charts cannot be packed at any density.
+    /// texels square. Fails when the resolution is out of range, the mesh
+    /// is not a valid mesh of `scene`, or the charts cannot be packed at any
+    /// density.
     pub fn build(scene: &Scene, mesh: &OutputMesh, resolution: u32) -> Result<Lightmap> {
         check_resolution(resolution)?;
         if let Some(message) = mesh.length_mismatch() {
             return Err(Error::encode("the lightmap", message));
+        }
+        let n = mesh.vertex_count();
+        if let Some(t) = mesh
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= n))
+        {
+            return Err(Error::encode(
+                "the lightmap",
+                format!("triangle {t} indexes beyond the {n} vertices"),
+            ));
         }
         let (uv, uv_source, charts, density) = match input_uvs(scene, mesh) {
             Some(uv) => (uv, UvSource::Input, 0, 0.0),
@@ -182,7 +194,7 @@ fn input_uvs(scene: &Scene, mesh: &OutputMesh) -> Option<Vec<Vec2>> {
         .map(|(&p, &x)| {
             let patch = scene.patches.get(p as usize)?;
             let triangles = patch.triangles.iter().filter(|&&t| t != u32::MAX);
-            crate::scene::interpolate_on_patch(
+            interpolate_on_patch(
                 triangles.map(|&t| &scene.triangles[t as usize]),
                 x.as_dvec3(),
                 |t| t.origin.lightmap_coords,
@@ -191,7 +203,7 @@ fn input_uvs(scene: &Scene, mesh: &OutputMesh) -> Option<Vec<Vec2>> {
         .collect()
 }
 
-/// One chart: patches, the plane basis, the bounds of its vertices in the
+/// One chart: its plane's basis and the bounds of its vertices in the
 /// plane (metres).
 struct Chart {
     u: DVec3,
