@@ -145,10 +145,14 @@ fn check_bake(
         "{what}: textures"
     );
     for (a, b) in input.textures().zip(doc.textures()) {
-        assert_eq!(a.source().index(), b.source().index());
+        assert_eq!(a.source().name(), b.source().name());
         assert_eq!(a.sampler().index(), b.sampler().index());
     }
-    assert_eq!(doc.images().len(), input.images().len(), "{what}: images");
+    // The images some texture uses, and only those.
+    let mut used: Vec<usize> = input.textures().map(|t| t.source().index()).collect();
+    used.sort_unstable();
+    used.dedup();
+    assert_eq!(doc.images().len(), used.len(), "{what}: images");
     let m = input.materials().len();
     for (a, b) in input.materials().zip(doc.materials()) {
         let (pa, pb) = (a.pbr_metallic_roughness(), b.pbr_metallic_roughness());
@@ -442,4 +446,27 @@ pub(crate) fn reassemble(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -
         irradiance: parts.iter().map(|p| p.3).collect(),
         triangles: triangles.into_iter().map(|t| t.1).collect(),
     }
+}
+
+#[test]
+fn an_image_no_texture_uses_may_be_missing_and_is_left_out() {
+    // Image 0 names a file that does not exist and no texture uses it; the
+    // texture uses image 1. The scene loads, and the bake keeps image 1
+    // only, as its image 0.
+    let mut g = Gltf::default();
+    g.light();
+    g.images.push(json!({"uri": "missing.png"}));
+    let texture = g.png_texture(1, 1, &[[200, 100, 50]], None);
+    let m = g.material(json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": texture}}}));
+    let tile = g.quad_mesh(Some("Tile"), Some(m));
+    g.root(json!({"name": "Tile", "mesh": tile}));
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("scene.gltf");
+    std::fs::write(&file, g.embedded()).unwrap();
+    let scene = load_scene(&file, &LoadOptions::default()).unwrap();
+    let (_, doc, _) = bake(&scene);
+    let images: Vec<_> = doc.images().collect();
+    assert_eq!(images.len(), 1);
+    assert_eq!(images[0].name(), Some("checker"));
+    assert_eq!(doc.textures().next().unwrap().source().index(), 0);
 }

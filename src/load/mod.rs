@@ -140,12 +140,23 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         dropped_indices: 0,
     };
     loader.traverse().map_err(scene_error)?;
-    let images = (0..document.images().len())
-        .map(|i| loader.image_bytes(i))
+    // The images some texture uses, in index order: the bake embeds them;
+    // the others are not read (an unused image may be missing).
+    let mut used: Vec<usize> = document
+        .as_json()
+        .textures
+        .iter()
+        .map(|t| t.source.value())
+        .collect();
+    used.sort_unstable();
+    used.dedup();
+    let images = used
+        .iter()
+        .map(|&i| loader.image_bytes(i))
         .collect::<Result<Vec<_>, String>>()
         .map_err(scene_error)?;
     let source = SourceDocument {
-        json: without_geometry(&document),
+        json: without_geometry(&document, &used),
         images,
         world: std::mem::take(&mut loader.world),
         materials: loader.material_sources(),
@@ -185,9 +196,10 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
 
 /// The document with its meshes, accessors, buffer views, buffers, skins
 /// and animations removed, and the node fields that refer to them (mesh,
-/// skin, morph weights) cleared; images lose their source (the bake
-/// embeds their bytes).
-fn without_geometry(document: &Document) -> gltf::json::Root {
+/// skin, morph weights) cleared; only the `used` images (ascending) stay,
+/// renumbered in order with the textures pointing at them, and without
+/// their source (the bake embeds their bytes).
+fn without_geometry(document: &Document, used: &[usize]) -> gltf::json::Root {
     let mut json = document.as_json().clone();
     json.meshes.clear();
     json.accessors.clear();
@@ -202,9 +214,19 @@ fn without_geometry(document: &Document) -> gltf::json::Root {
         // Its light (KHR_lights_punctual), which the bake does not carry.
         node.extensions = None;
     }
-    for image in &mut json.images {
-        image.buffer_view = None;
-        image.uri = None;
+    json.images = used
+        .iter()
+        .filter_map(|&i| json.images.get(i).cloned())
+        .map(|mut image| {
+            image.buffer_view = None;
+            image.uri = None;
+            image
+        })
+        .collect();
+    for texture in &mut json.textures {
+        if let Ok(k) = used.binary_search(&texture.source.value()) {
+            texture.source = gltf::json::Index::new(k as u32);
+        }
     }
     json
 }

@@ -8,12 +8,14 @@
 //!
 //! Invariants:
 //! - `json` has no meshes, accessors, buffer views, buffers, skins or
-//!   animations; every other index (nodes, cameras, materials, textures,
-//!   samplers, images) is the input's own, so a bake that copies these
-//!   arrays keeps the input's indices.
-//! - `images[i]` holds the encoded bytes of image `i` (PNG or JPEG, as the
-//!   input had them), wherever the input kept them (URI, data URI, buffer
-//!   view).
+//!   animations; every other index but the images' (nodes, cameras,
+//!   materials, textures, samplers) is the input's own, so a bake that
+//!   copies these arrays keeps the input's indices.
+//! - `json.images` are the images some texture uses (the others are left
+//!   out, unread), renumbered in order, and the textures point at them;
+//!   `images[i]` holds the encoded bytes of `json.images[i]` (PNG or JPEG,
+//!   as the input had them), wherever the input kept them (URI, data URI,
+//!   buffer view).
 //! - `world[n]` is node `n`'s world transform when the loader reached it
 //!   from the default scene, `None` otherwise.
 
@@ -28,7 +30,7 @@ pub struct SourceDocument {
     /// The document: nodes, scenes, cameras, materials, textures, samplers
     /// and images as the input wrote them; see the module invariants.
     pub json: json::Root,
-    /// Encoded bytes of every image, by image index.
+    /// Encoded bytes of each image of `json.images`.
     pub images: Vec<Vec<u8>>,
     /// World transform of every node reached from the default scene.
     pub world: Vec<Option<DMat4>>,
