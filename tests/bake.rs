@@ -7,15 +7,12 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DMat4, Vec3};
+use nusselt::Progress;
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
 use nusselt::output::baked::{self, BakeLayout};
 use nusselt::scene::Scene;
 use serde_json::json;
-
-use nusselt::render::RenderSettings;
-use nusselt::render::view::ViewOverrides;
-use nusselt::{Accuracy, HierarchicalSettings, Preset, Progress, SolveSettings};
 
 use crate::loader::Gltf;
 
@@ -276,15 +273,7 @@ fn every_bundled_scene_keeps_its_structure_in_the_bake() {
 fn textured_instances_and_a_mirror_keep_their_frames_and_texture_coordinates() {
     let mut g = Gltf::default();
     g.light();
-    let texture = g.png_texture(
-        2,
-        2,
-        &[[250, 20, 20], [20, 250, 20], [20, 20, 250], [200, 200, 200]],
-        None,
-    );
-    let checker = g.material(json!({"name": "Checker", "pbrMetallicRoughness": {
-        "baseColorFactor": [0.9, 0.9, 0.9, 1.0], "metallicFactor": 0.0,
-        "baseColorTexture": {"index": texture}}}));
+    let checker = g.checker();
     let quad = g.quad_mesh(Some("Tile"), Some(checker));
     // A parent that rotates and scales unevenly, its two instances of the
     // tile (one mirrored), and a camera child.
@@ -357,19 +346,7 @@ fn a_real_solve_bakes_onto_the_nodes() {
     // `write_outputs` re-reads with its world positions on the solution's.
     let file = crate::fixtures::scene_path("cornell-box.gltf");
     let scene = load_scene(&file, &LoadOptions::default()).unwrap();
-    let settings = SolveSettings {
-        hierarchical: HierarchicalSettings {
-            accuracy: Accuracy::preset(Preset::Preview),
-            ..HierarchicalSettings::default()
-        },
-        render: RenderSettings::with_samples(1, 0),
-        view: ViewOverrides {
-            width: Some(16),
-            height: Some(16),
-            ..ViewOverrides::default()
-        },
-        ..SolveSettings::default()
-    };
+    let settings = crate::fixtures::preview_settings(None);
     let mut run = nusselt::solve(&scene, &settings, &Progress::hidden()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     nusselt::write_outputs(dir.path(), &mut run).unwrap();

@@ -611,3 +611,25 @@ pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         .unwrap()
         .install(f)
 }
+
+/// A quick whole solve: the preview preset, a 16 × 16 render of one sample,
+/// and a lightmap of that side when given.
+pub fn preview_settings(lightmap: Option<u32>) -> nusselt::SolveSettings {
+    use nusselt::render::RenderSettings;
+    use nusselt::render::view::ViewOverrides;
+    use nusselt::{Accuracy, HierarchicalSettings, Preset};
+    nusselt::SolveSettings {
+        hierarchical: HierarchicalSettings {
+            accuracy: Accuracy::preset(Preset::Preview),
+            ..HierarchicalSettings::default()
+        },
+        render: RenderSettings::with_samples(1, 0),
+        view: ViewOverrides {
+            width: Some(16),
+            height: Some(16),
+            ..ViewOverrides::default()
+        },
+        lightmap,
+        ..nusselt::SolveSettings::default()
+    }
+}

@@ -7,34 +7,16 @@ use glam::{Vec2, Vec3};
 use nusselt::lightmap::{Lightmap, UvSource};
 use nusselt::load::{LoadOptions, load_scene};
 use nusselt::mesh::OutputMesh;
-use nusselt::render::RenderSettings;
-use nusselt::render::view::ViewOverrides;
 use nusselt::scene::Scene;
-use nusselt::{Accuracy, HierarchicalSettings, Preset, Progress, SolveRun, SolveSettings};
+use nusselt::{Progress, SolveRun};
 use rand::{Rng, SeedableRng};
 use serde_json::json;
 
+use crate::fixtures::preview_settings;
 use crate::loader::Gltf;
 
-fn settings(lightmap: Option<u32>) -> SolveSettings {
-    SolveSettings {
-        hierarchical: HierarchicalSettings {
-            accuracy: Accuracy::preset(Preset::Preview),
-            ..HierarchicalSettings::default()
-        },
-        render: RenderSettings::with_samples(1, 0),
-        view: ViewOverrides {
-            width: Some(16),
-            height: Some(16),
-            ..ViewOverrides::default()
-        },
-        lightmap,
-        ..SolveSettings::default()
-    }
-}
-
 fn solve(scene: &Scene, lightmap: Option<u32>) -> SolveRun {
-    nusselt::solve(scene, &settings(lightmap), &Progress::hidden()).unwrap()
+    nusselt::solve(scene, &preview_settings(lightmap), &Progress::hidden()).unwrap()
 }
 
 /// Relative differences between the atlas (bilinear, through the
@@ -145,15 +127,7 @@ fn a_textured_scene_with_a_mirrored_instance_bakes_its_atlas_too() {
     // with the mesh as on the Cornell box, and no footprint reads a hole.
     let mut g = Gltf::default();
     g.light();
-    let texture = g.png_texture(
-        2,
-        2,
-        &[[250, 20, 20], [20, 250, 20], [20, 20, 250], [200, 200, 200]],
-        None,
-    );
-    let checker = g.material(json!({"name": "Checker", "pbrMetallicRoughness": {
-        "baseColorFactor": [0.9, 0.9, 0.9, 1.0], "metallicFactor": 0.0,
-        "baseColorTexture": {"index": texture}}}));
+    let checker = g.checker();
     let tile = g.quad_mesh(Some("Tile"), Some(checker));
     g.root(json!({"name": "Plain", "mesh": tile, "scale": [3.0, 2.0, 1.0]}));
     g.root(json!({"name": "Mirror", "mesh": tile, "scale": [-3.0, 2.0, 1.0], "translation": [-0.5, 0.0, 0.0]}));
@@ -229,27 +203,55 @@ fn the_two_sides_of_a_seam_agree() {
     }
 }
 
+/// A mesh named `name`: a 2 m square at y = 0 facing +y (or −y when
+/// `down`), with `uv1` as TEXCOORD_1 (and `uv0` as TEXCOORD_0) at its
+/// corners, which run from (−1, +1) in x, z anticlockwise seen from the
+/// front.
+fn square(
+    g: &mut Gltf,
+    name: &str,
+    material: usize,
+    down: bool,
+    uv1: [[f32; 2]; 4],
+    uv0: Option<[[f32; 2]; 4]>,
+) -> usize {
+    let up = [
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+        [-1.0, 0.0, -1.0],
+    ];
+    let down_corners = [
+        [-1.0, 0.0, -1.0],
+        [1.0, 0.0, -1.0],
+        [1.0, 0.0, 1.0],
+        [-1.0, 0.0, 1.0],
+    ];
+    let pos = g.positions(if down { &down_corners } else { &up });
+    let mut attributes = json!({"POSITION": pos, "TEXCOORD_1": g.uvs(&uv1)});
+    if let Some(uv0) = uv0 {
+        attributes["TEXCOORD_0"] = json!(g.uvs(&uv0));
+    }
+    let idx = g.indices(&[0, 1, 2, 0, 2, 3]);
+    g.mesh(
+        Some(name),
+        vec![json!({"attributes": attributes, "indices": idx, "material": material})],
+    )
+}
+
 #[test]
 fn the_input_s_texcoord_1_is_used_and_the_bake_carries_the_atlas() {
     let mut g = Gltf::default();
     g.light();
     let grey = g.grey();
     // A 2 m square floor whose TEXCOORD_1 maps it onto the atlas's left half.
-    let pos = g.positions(&[
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-        [-1.0, 0.0, -1.0],
-    ]);
-    let uv0 = g.uvs(&[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]);
-    let uv1 = g.uvs(&[[0.05, 0.95], [0.45, 0.95], [0.45, 0.05], [0.05, 0.05]]);
-    let idx = g.indices(&[0, 1, 2, 0, 2, 3]);
-    let floor = g.mesh(
-        Some("Floor"),
-        vec![
-            json!({"attributes": {"POSITION": pos, "TEXCOORD_0": uv0, "TEXCOORD_1": uv1},
-            "indices": idx, "material": grey}),
-        ],
+    let floor = square(
+        &mut g,
+        "Floor",
+        grey,
+        false,
+        [[0.05, 0.95], [0.45, 0.95], [0.45, 0.05], [0.05, 0.05]],
+        Some([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]),
     );
     g.root(json!({"name": "Floor", "mesh": floor, "translation": [0.0, 45.0, 0.0]}));
     // The light (from `light`) lacks TEXCOORD_1: the input's coordinates
@@ -262,31 +264,23 @@ fn the_input_s_texcoord_1_is_used_and_the_bake_carries_the_atlas() {
     // Without the light's triangles lacking it: give the light TEXCOORD_1.
     let mut g = Gltf::default();
     let light = g.emitter();
-    let lpos = g.positions(&[
-        [-1.0, 0.0, -1.0],
-        [1.0, 0.0, -1.0],
-        [1.0, 0.0, 1.0],
-        [-1.0, 0.0, 1.0],
-    ]);
-    let luv = g.uvs(&[[0.55, 0.05], [0.95, 0.05], [0.95, 0.45], [0.55, 0.45]]);
-    let lidx = g.indices(&[0, 1, 2, 0, 2, 3]);
-    let lamp = g.mesh(
-        Some("Lamp"),
-        vec![json!({"attributes": {"POSITION": lpos, "TEXCOORD_1": luv}, "indices": lidx, "material": light})],
+    let lamp = square(
+        &mut g,
+        "Lamp",
+        light,
+        true,
+        [[0.55, 0.05], [0.95, 0.05], [0.95, 0.45], [0.55, 0.45]],
+        None,
     );
     g.root(json!({"name": "Lamp", "mesh": lamp, "translation": [0.0, 1.0, 0.0]}));
     let grey = g.grey();
-    let pos = g.positions(&[
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-        [-1.0, 0.0, -1.0],
-    ]);
-    let uv1 = g.uvs(&[[0.05, 0.95], [0.45, 0.95], [0.45, 0.55], [0.05, 0.55]]);
-    let idx = g.indices(&[0, 1, 2, 0, 2, 3]);
-    let floor = g.mesh(
-        Some("Floor"),
-        vec![json!({"attributes": {"POSITION": pos, "TEXCOORD_1": uv1}, "indices": idx, "material": grey})],
+    let floor = square(
+        &mut g,
+        "Floor",
+        grey,
+        false,
+        [[0.05, 0.95], [0.45, 0.95], [0.45, 0.55], [0.05, 0.55]],
+        None,
     );
     g.root(json!({"name": "Floor", "mesh": floor}));
     let scene = g.load().unwrap();
@@ -337,7 +331,8 @@ fn an_out_of_range_lightmap_is_refused() {
     )
     .unwrap();
     for bad in [0, 8, 100_000] {
-        let err = nusselt::solve(&scene, &settings(Some(bad)), &Progress::hidden()).unwrap_err();
+        let err =
+            nusselt::solve(&scene, &preview_settings(Some(bad)), &Progress::hidden()).unwrap_err();
         assert!(err.to_string().contains("--lightmap"), "{err}");
     }
 }

@@ -134,6 +134,16 @@ impl Gltf {
         )
     }
 
+    /// A material "Checker" whose base colour is a 2 × 2 texture of four
+    /// colours.
+    pub(crate) fn checker(&mut self) -> usize {
+        let texels = [[250, 20, 20], [20, 250, 20], [20, 20, 250], [200, 200, 200]];
+        let texture = self.png_texture(2, 2, &texels, None);
+        self.material(json!({"name": "Checker", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.9, 0.9, 0.9, 1.0], "metallicFactor": 0.0,
+            "baseColorTexture": {"index": texture}}}))
+    }
+
     /// A PNG image (8-bit sRGB RGB) embedded through a buffer view.
     pub(crate) fn png_texture(
         &mut self,

@@ -5,8 +5,8 @@
 //! world-space triangles with their averaged material values, materials,
 //! surfaces (one per node with a mesh) and perspective cameras, handed to
 //! [`Scene::build`]; and the document's structure without its geometry
-//! ([`SourceDocument`]: nodes, cameras, materials, every image's bytes), with
-//! each triangle's primitive and `TEXCOORD_0`, for the bake.
+//! ([`SourceDocument`]: nodes, cameras, materials, the textures' images), with
+//! each triangle's primitive and `TEXCOORD_0`/`TEXCOORD_1`, for the bake.
 //!
 //! Invariants:
 //! - Untrusted input never panics and never drives an allocation: every
@@ -666,49 +666,19 @@ impl Loader<'_> {
             return Ok(None);
         };
         let set = slot.tex_coord;
-        let role = format!("TEXCOORD_{set}");
-        let Some(acc) = primitive.get(&Semantic::TexCoords(set)) else {
+        let Some(raw) = self.tex_coords(primitive, set, n_vertices)? else {
             return Err(format!(
-                "the material's {} uses {role}, which the primitive lacks",
+                "the material's {} uses TEXCOORD_{set}, which the primitive lacks",
                 slot.role
             ));
         };
-        accessor::check(
-            &acc,
-            &Expect {
-                role: role.clone(),
-                types: &[DataType::F32, DataType::U8, DataType::U16],
-                dimensions: Dimensions::Vec2,
-            },
-            self.buffers,
-        )?;
-        if acc.data_type() != DataType::F32 && !acc.normalized() {
-            return Err(format!(
-                "{role} accessor {} holds integers that are not normalized",
-                acc.index()
-            ));
-        }
-        if acc.count() != n_vertices {
-            return Err(format!(
-                "{role} has {} elements but POSITION has {n_vertices}",
-                acc.count()
-            ));
-        }
-        let buffers = self.buffers;
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let mut uvs = Vec::with_capacity(n_vertices);
-        for (i, uv) in reader
-            .read_tex_coords(set)
-            .ok_or_else(|| format!("{role} data is unreadable"))?
-            .into_f32()
-            .enumerate()
-        {
-            if !uv.iter().all(|c| c.is_finite()) {
-                return Err(format!("vertex {i} has a non-finite {role} {uv:?}"));
-            }
-            let uv = DVec2::new(uv[0].into(), uv[1].into());
-            uvs.push(slot.transform.map_or(uv, |t| t.apply(uv)));
-        }
+        let uvs: Vec<DVec2> = raw
+            .into_iter()
+            .map(|[u, v]| {
+                let uv = DVec2::new(u.into(), v.into());
+                slot.transform.map_or(uv, |t| t.apply(uv))
+            })
+            .collect();
         let texture = self.texture(slot.image)?;
         let sampler = slot.sampler;
         Ok(Some(

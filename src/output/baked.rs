@@ -665,6 +665,16 @@ impl Packer {
         })
     }
 
+    /// A vertex-attribute view of little-endian f32s.
+    fn float_view(
+        &mut self,
+        floats: impl Iterator<Item = f32>,
+        name: &str,
+    ) -> json::Index<json::buffer::View> {
+        let bytes: Vec<u8> = floats.flat_map(f32::to_le_bytes).collect();
+        self.view(&bytes, Some(Target::ArrayBuffer), name)
+    }
+
     /// A float VEC3 vertex attribute; with `bounded`, its exact per-axis
     /// minimum and maximum (required for POSITION).
     fn vec3_accessor(
@@ -673,12 +683,7 @@ impl Packer {
         name: &str,
         bounded: bool,
     ) -> json::Index<json::Accessor> {
-        let bytes: Vec<u8> = values
-            .iter()
-            .flat_map(|v| v.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let view = self.view(&bytes, Some(Target::ArrayBuffer), name);
+        let view = self.float_view(values.iter().flat_map(|v| v.to_array()), name);
         let bounds = bounded.then(|| {
             let (lo, hi) = values.iter().fold(
                 (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -700,12 +705,7 @@ impl Packer {
 
     /// A float VEC2 vertex attribute.
     fn vec2_accessor(&mut self, values: &[Vec2], name: &str) -> json::Index<json::Accessor> {
-        let bytes: Vec<u8> = values
-            .iter()
-            .flat_map(|v| v.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let view = self.view(&bytes, Some(Target::ArrayBuffer), name);
+        let view = self.float_view(values.iter().flat_map(|v| v.to_array()), name);
         self.accessor(
             view,
             values.len(),
