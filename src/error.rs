@@ -21,12 +21,13 @@ pub enum Error {
         /// What is wrong, naming the mesh, primitive or node.
         message: String,
     },
-    /// A scene without any emitting surface cannot be lit.
+    /// A scene without any light cannot be lit.
     #[error(
-        "no emitting surfaces in the scene (light comes from emissive materials: \
-         emissiveFactor, times KHR_materials_emissive_strength, above 0)"
+        "no light in the scene: looked for emissive materials (emissiveFactor, times \
+         KHR_materials_emissive_strength, above 0), KHR_lights_punctual lights placed by \
+         the scene's nodes, and a sky (--sky)"
     )]
-    NoEmitters,
+    NoLight,
     /// The scene has nothing to solve (every triangle was dropped or absent).
     #[error("no usable triangles in the scene")]
     EmptyScene,

@@ -72,6 +72,8 @@ pub mod visibility;
 
 pub mod sampling;
 
+pub mod illumination;
+
 pub mod formfactor;
 
 // Solvers.

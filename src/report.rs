@@ -132,8 +132,12 @@ pub struct CorrectionReport {
 /// Energy balance, W per channel.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Power {
-    /// Σ E_i A_i.
+    /// The power entering the scene: Σ E_i A_i, plus `lights`.
     pub emitted: [f64; 3],
+    /// Of `emitted`, what the punctual lights and the sky bring to the
+    /// surfaces directly (Σ H_light,i A_i).
+    #[serde(default)]
+    pub lights: [f64; 3],
     /// Σ (1 − ρ_i) H_i A_i: what the surfaces absorb.
     pub absorbed: [f64; 3],
     /// Σ B_i A_i: all power leaving surfaces.

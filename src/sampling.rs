@@ -1,7 +1,8 @@
 //! Deterministic random numbers and point sampling on polygons.
 //!
-//! Owns: how a seed becomes per-task random streams, and area-uniform
-//! mappings from the unit square to polygons.
+//! Owns: how a seed becomes per-task random streams, area-uniform
+//! mappings from the unit square to polygons, and cosine-distributed
+//! directions.
 //!
 //! Invariant: a stream depends only on (seed, task key), never on the thread
 //! that runs the task, so results are identical for any thread count.
@@ -44,6 +45,16 @@ pub fn stratified(n: usize, rng: &mut impl Rng) -> Vec<DVec2> {
             )
         })
         .collect()
+}
+
+/// A cosine-distributed unit direction about unit `n` from two uniform
+/// numbers in [0, 1) (Malley's method: uniform disc, projected up).
+pub fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
+    let (t, b) = n.any_orthonormal_pair();
+    let r = u1.sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u2;
+    let z = (1.0 - u1).max(0.0).sqrt();
+    (r * phi.cos() * t + r * phi.sin() * b + z * n).normalize()
 }
 
 /// Maps a point of the unit square to a point of a convex planar polygon,
@@ -125,6 +136,29 @@ impl<'a> PolygonSampler<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cosine_directions_have_the_cosine_moments() {
+        // E[cos θ] = 2/3 and E[cos² θ] = 1/2 for the cosine density.
+        let n = DVec3::new(1.0, 2.0, -0.5).normalize();
+        let mut rng = stream(5, 0);
+        let k = 200_000;
+        let (mut m1, mut m2) = (0.0, 0.0);
+        for _ in 0..k {
+            let d = cosine_direction(n, rng.random(), rng.random());
+            assert!((d.length() - 1.0).abs() < 1e-12);
+            let c = d.dot(n);
+            assert!(c >= 0.0);
+            m1 += c;
+            m2 += c * c;
+        }
+        assert!(
+            (m1 / k as f64 - 2.0 / 3.0).abs() < 3e-3,
+            "{}",
+            m1 / k as f64
+        );
+        assert!((m2 / k as f64 - 0.5).abs() < 3e-3, "{}", m2 / k as f64);
+    }
 
     #[test]
     fn streams_are_reproducible_and_distinct() {

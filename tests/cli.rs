@@ -61,7 +61,7 @@ fn no_emitters() {
     let p = write(dir.path(), "dark.gltf", &gltf_json(&meshes));
     assert_user_error(
         &nusselt(&["solve", &p, "-q"], dir.path()),
-        "no emitting surfaces",
+        "no light in the scene",
     );
 }
 

@@ -212,6 +212,16 @@ pub fn room(spec: Room) -> Scene {
 /// front, one surface each): a wall (reflectance `rho`, radiance `glow`)
 /// or, when marked, a black lamp of radiance 1.
 pub fn painted(quads: &[([DVec3; 4], usize, bool)], rho: f64, glow: f64) -> Scene {
+    painted_lit(quads, rho, glow, nusselt::scene::Lights::default())
+}
+
+/// [`painted`], lit also (or only) by `lights`.
+pub fn painted_lit(
+    quads: &[([DVec3; 4], usize, bool)],
+    rho: f64,
+    glow: f64,
+    lights: nusselt::scene::Lights,
+) -> Scene {
     let mut tris = Vec::new();
     let mut surfaces = Vec::new();
     for (s, &(q, n, lamp)) in quads.iter().enumerate() {
@@ -240,7 +250,7 @@ pub fn painted(quads: &[([DVec3; 4], usize, bool)], rho: f64, glow: f64) -> Scen
         t.reflectance = m.reflectance;
         t.emitted_radiance = m.emitted_radiance;
     }
-    Scene::build(tris, materials, surfaces, vec![], vec![]).unwrap()
+    Scene::build_lit(tris, materials, surfaces, vec![], vec![], lights).unwrap()
 }
 
 /// The test room: a 6 × 6 grid per face, three boxes on the floor, ρ 0.5,

@@ -73,7 +73,7 @@ fn seed_corpus_covers_valid_and_broken_inputs() {
         ("huge_count.gltf", "exceed"),
         ("truncated.glb", "not a valid glTF"),
         ("malformed.gltf", "not a valid glTF"),
-        ("no_emitters.glb", "no emitting surfaces"),
+        ("no_emitters.glb", "no light in the scene"),
     ] {
         match load(name) {
             Ok(_) => panic!("{name} should fail"),

@@ -7,7 +7,7 @@ use std::path::Path;
 use glam::DVec3;
 use nusselt::Error;
 use nusselt::load::{LoadOptions, load_scene, load_scene_from_slice};
-use nusselt::scene::{Scene, Shape, Side};
+use nusselt::scene::{LightKind, Scene, Shape, Side};
 use serde_json::{Value, json};
 
 /// Builds small glTF documents with one binary buffer (also used by the
@@ -601,6 +601,7 @@ fn default_material_is_white_and_clamped_and_features_warn_once() {
     // The maximum is configurable.
     let options = LoadOptions {
         max_reflectance: 0.9,
+        ..LoadOptions::default()
     };
     let scene = load_scene_from_slice(&g.embedded(), None, &options).unwrap();
     let default = scene
@@ -783,55 +784,107 @@ fn a_scene_without_emitters_is_an_error() {
     let m = g.grey();
     let mesh = g.quad_mesh(None, Some(m));
     g.root(json!({"mesh": mesh}));
-    assert!(matches!(g.load(), Err(Error::NoEmitters)));
+    assert!(matches!(g.load(), Err(Error::NoLight)));
 }
 
 #[test]
-fn punctual_lights_are_named_not_silently_dropped() {
-    // Lights are not read yet (issue 23): a scene lit only by them says so
-    // and names them; beside an emitter they are a named warning.
+fn punctual_lights_are_read_in_world_space() {
+    // A point light under a parent node translated by (1, 2, 3), a
+    // directional light rotated 90° about x (its −z turns to −y, down),
+    // a spot light with its cone.
     let (_, mut json) = valid_json();
     json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
     json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
-        {"type": "point", "name": "Bulb", "intensity": 10.0},
-        {"type": "directional", "intensity": 3.0}]}});
+        {"type": "point", "name": "Bulb", "intensity": 10.0, "color": [1.0, 0.5, 0.25], "range": 4.0},
+        {"type": "directional", "intensity": 3.0},
+        {"type": "spot", "intensity": 2.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}}]}});
+    let s = std::f64::consts::FRAC_1_SQRT_2;
     json["nodes"].as_array_mut().unwrap().extend([
-        json!({"name": "B", "extensions": {"KHR_lights_punctual": {"light": 0}}}),
-        json!({"name": "Sun", "extensions": {"KHR_lights_punctual": {"light": 1}}}),
+        json!({"name": "Lamp", "translation": [1.0, 2.0, 3.0], "children": [2]}),
+        json!({"name": "B", "translation": [0.5, 0.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+        json!({"name": "Sun", "rotation": [-s, 0.0, 0.0, s], "extensions": {"KHR_lights_punctual": {"light": 1}}}),
+        json!({"name": "Spot", "extensions": {"KHR_lights_punctual": {"light": 2}}}),
     ]);
-    json["scenes"][0]["nodes"] = json!([0, 1, 2]);
+    json["scenes"][0]["nodes"] = json!([0, 1, 3, 4]);
     let scene = load_json(&json).unwrap();
-    let warning = scene
-        .warnings
-        .iter()
-        .find(|w| w.contains("KHR_lights_punctual"))
-        .expect("a warning names the lights");
     assert!(
-        warning.contains("2 light(s)")
-            && warning.contains("point 'Bulb'")
-            && warning.contains("directional light 1"),
-        "{warning}"
+        scene
+            .warnings
+            .iter()
+            .all(|w| !w.contains("KHR_lights_punctual"))
     );
+    let lights = &scene.lights.punctual;
+    assert_eq!(lights.len(), 3);
+    let bulb = &lights[0];
+    assert_eq!(bulb.name, "Bulb");
+    assert_eq!(bulb.kind, LightKind::Point);
+    assert!((bulb.position - DVec3::new(1.5, 2.0, 3.0)).length() < 1e-12);
+    assert_eq!(bulb.intensity, DVec3::new(10.0, 5.0, 2.5));
+    assert_eq!(bulb.range, Some(4.0));
+    assert_eq!(lights[1].kind, LightKind::Directional);
+    assert_eq!(lights[1].name, "directional light 1");
+    assert!(
+        (lights[1].direction - DVec3::NEG_Y).length() < 1e-6,
+        "{}",
+        lights[1].direction
+    );
+    let LightKind::Spot {
+        cos_inner,
+        cos_outer,
+    } = lights[2].kind
+    else {
+        panic!("{:?}", lights[2].kind)
+    };
+    assert!((cos_inner - 0.2f64.cos()).abs() < 1e-6 && (cos_outer - 0.5f64.cos()).abs() < 1e-6);
+    assert!((lights[2].direction - DVec3::NEG_Z).length() < 1e-12);
     // The bake drops the lights, and with them the nodes' references.
     let source = scene.source.as_ref().unwrap();
     assert!(source.json.nodes.iter().all(|n| n.extensions.is_none()));
 
-    // Without the emitter: an error naming what was looked for and found.
+    // Lights alone light a scene.
     json["materials"][0]["emissiveFactor"] = json!([0.0, 0.0, 0.0]);
-    let message = scene_error(load_json(&json));
+    assert!(scene.patches.iter().any(|p| p.is_emitter()));
+    let unlit = load_json(&json).unwrap();
+    assert!(unlit.patches.iter().all(|p| !p.is_emitter()) && unlit.lights.punctual.len() == 3);
+
+    // What the spec forbids is an error naming the light.
+    for (field, value, needle) in [
+        (
+            "spot",
+            json!({"innerConeAngle": 0.6, "outerConeAngle": 0.5}),
+            "cone angles",
+        ),
+        ("range", json!(0.0), "range"),
+        ("intensity", json!(-1.0), "intensity"),
+    ] {
+        let mut bad = json.clone();
+        bad["extensions"]["KHR_lights_punctual"]["lights"][2][field] = value;
+        let message = scene_error(load_json(&bad));
+        assert!(
+            message.contains("light 2") && message.contains(needle),
+            "{message}"
+        );
+    }
+    let mut bad = json.clone();
+    bad["nodes"][4]["extensions"]["KHR_lights_punctual"]["light"] = json!(7);
+    let message = scene_error(load_json(&bad));
     assert!(
-        message.contains("no emitting surfaces")
-            && message.contains("2 KHR_lights_punctual light(s)")
-            && message.contains("point 'Bulb'"),
+        message.contains("nodes[4]") && message.contains("light"),
         "{message}"
     );
-    // And with no light of any kind, the message says where light comes from.
+
+    // With no light of any kind, the message says which kinds were looked for.
     let mut g = Gltf::default();
     let m = g.grey();
     let mesh = g.quad_mesh(None, Some(m));
     g.root(json!({"mesh": mesh}));
     let message = g.load().unwrap_err().to_string();
-    assert!(message.contains("emissiveFactor"), "{message}");
+    assert!(
+        message.contains("emissiveFactor")
+            && message.contains("KHR_lights_punctual")
+            && message.contains("--sky"),
+        "{message}"
+    );
 }
 
 #[test]

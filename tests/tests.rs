@@ -40,6 +40,8 @@ mod importance;
 mod loader;
 // The output mesh in its three modes: validity, contact lines, adaptivity.
 mod meshing;
+// Punctual lights and the sky: closed forms, energy, sharp shadows, the path tracer.
+mod lights;
 // Lightmaps: the atlas agrees with the mesh, no holes, TEXCOORD_1, the bake's atlas.
 mod lightmap;
 // Output encoders, readers and atomic writing.

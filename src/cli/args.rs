@@ -40,13 +40,24 @@ pub struct LoadArgs {
     /// Reflectances at or above this are clamped to it.
     #[arg(long, default_value_t = 0.999)]
     pub max_reflectance: f64,
+    /// The sky around the scene: a uniform radiance R,G,B (W·m⁻²·sr⁻¹),
+    /// or an equirectangular OpenEXR environment (y up, the image centre
+    /// toward −z). It lights the scene through its openings and absorbs
+    /// what leaves.
+    #[arg(long, value_name = "R,G,B|FILE.exr", allow_hyphen_values = true)]
+    pub sky: Option<String>,
 }
 
 impl LoadArgs {
     /// The loader's options, checked.
     pub fn options(&self) -> Result<LoadOptions> {
+        let sky = match &self.sky {
+            Some(spec) => Some(std::sync::Arc::new(nusselt::load::parse_sky(spec)?)),
+            None => None,
+        };
         let options = LoadOptions {
             max_reflectance: self.max_reflectance,
+            sky,
         };
         super::checked(options.validate())?;
         Ok(options)
@@ -147,6 +158,10 @@ pub struct HierarchicalArgs {
     /// Refinement rounds (refine + solve) at most.
     #[arg(long)]
     pub max_rounds: Option<usize>,
+    /// Sky rays per output vertex (with --sky): preview 256, default 1024,
+    /// high 4096.
+    #[arg(long)]
+    pub sky_rays: Option<usize>,
     /// Start the links from a cluster hierarchy above the patches (no
     /// step over every pair of patches); auto clusters scenes of 1,000
     /// patches or more.
@@ -214,6 +229,9 @@ impl HierarchicalArgs {
         a.max_elements = count("max-elements", self.max_elements)?;
         if let Some(r) = self.max_rounds {
             a.max_rounds = r;
+        }
+        if let Some(r) = self.sky_rays {
+            a.sky_rays = r;
         }
         Ok(HierarchicalSettings {
             oracle: self.oracle,

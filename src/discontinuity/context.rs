@@ -81,12 +81,21 @@ impl<'a> Context<'a> {
     }
 
     /// Unoccluded irradiance at `x` on receiver `r` from luminaire `l`, over
-    /// the mean exitance; 0 without emitters.
+    /// the mean exitance; 0 without any light.
     pub(super) fn weight(&self, l: &Luminaire, r: u32, x: DVec3) -> f64 {
         if !(self.mean_exitance > 0.0) {
             return 0.0;
         }
         let n = self.receivers[r as usize].normal;
-        form_factor_point_polygon(x, n, &l.polygon) * l.exitance / self.mean_exitance
+        match l.light {
+            Some(k) => {
+                let light = &self.scene.lights.punctual[k];
+                light
+                    .incident(x, n, self.scene.far())
+                    .map_or(0.0, |i| luminaires::scalar(i.irradiance))
+                    / self.mean_exitance
+            }
+            None => form_factor_point_polygon(x, n, &l.polygon) * l.exitance / self.mean_exitance,
+        }
     }
 }

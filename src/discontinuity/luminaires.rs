@@ -4,6 +4,10 @@
 //! ([`significant`]), the union polygon of a group, the scene's mean
 //! exitance and the scalar (channel-mean) reduction of a colour.
 //!
+//! A punctual light is a luminaire of one vertex (its VE wedges are its
+//! hard shadow lines; it has no EV wedges); a directional light stands
+//! [`SUN_DISTANCE`] diagonals away.
+//!
 //! A luminaire is one emitter patch, or several adjacent (edge-sharing)
 //! coplanar emitter patches of one surface and one emission whose union is
 //! one convex polygon. Emitter patches that do not merge are traced
@@ -25,24 +29,35 @@ use glam::DVec3;
 
 use super::PLANE_TOL;
 use super::receivers::Receiver;
-use crate::scene::{Scene, polygon_area_normal};
+use crate::scene::{LightKind, PunctualLight, Scene, polygon_area_normal};
 use crate::util::geometry::{PositionKey, position_key};
 use crate::util::union_find::UnionFind;
 
 /// Two neighbouring emitter patches are coplanar when the dot product of
 /// their normals exceeds 1 minus this.
 const SAME_NORMAL: f64 = 1e-12;
+/// How far back a directional light's luminaire stands, in scene
+/// diagonals: its wedges' planes are within 1/1000 rad of the true
+/// parallel ones.
+const SUN_DISTANCE: f64 = 1e3;
 /// A boundary vertex is collinear with its neighbours, and dropped, when
 /// the cross product of its two edges is at most this fraction of the
 /// product of their lengths.
 const COLLINEAR: f64 = 1e-9;
 
 /// An emitter polygon: one emitter patch, or several coplanar adjacent ones
-/// of one surface and emission whose union is convex.
+/// of one surface and emission whose union is convex; or a punctual light,
+/// a polygon of one vertex.
 pub(super) struct Luminaire {
     /// Counter-clockwise about `normal`.
     pub(super) polygon: Vec<DVec3>,
+    /// The side it lights is in front of its plane (through `polygon[0]`),
+    /// unless `omni`.
     pub(super) normal: DVec3,
+    /// A point light: it lights every direction, no half-space.
+    pub(super) omni: bool,
+    /// The punctual light it stands for (index into the scene's).
+    pub(super) light: Option<usize>,
     /// Scalar (channel-mean) exitance.
     pub(super) exitance: f64,
     pub(super) power: f64,
@@ -60,6 +75,8 @@ impl Luminaire {
         Luminaire {
             polygon: patch.vertices().to_vec(),
             normal: patch.normal,
+            omni: false,
+            light: None,
             exitance: scalar(patch.emission),
             power: scalar(patch.emission) * patch.area,
             patch: p,
@@ -75,11 +92,45 @@ impl Luminaire {
         Luminaire {
             polygon,
             normal: first.normal,
+            omni: false,
+            light: None,
             exitance: scalar(first.emission),
             power: scalar(first.emission) * area,
             patch: patches[0],
             patches,
             receivers: Vec::new(),
+        }
+    }
+
+    /// The luminaire of punctual light `k`: its position (for a directional
+    /// light, a point [`SUN_DISTANCE`] diagonals back along its direction),
+    /// named `patch_count + k` in segments.
+    fn punctual(scene: &Scene, k: usize, light: &PunctualLight) -> Luminaire {
+        let position = match light.kind {
+            LightKind::Directional => {
+                scene.center() - SUN_DISTANCE * scene.diagonal() * light.direction
+            }
+            _ => light.position,
+        };
+        Luminaire {
+            polygon: vec![position],
+            normal: light.direction,
+            omni: light.kind == LightKind::Point,
+            light: Some(k),
+            exitance: 0.0,
+            power: scalar(light.power(scene.bounds.1 - scene.bounds.0)),
+            patch: (scene.patches.len() + k) as u32,
+            patches: Vec::new(),
+            receivers: Vec::new(),
+        }
+    }
+
+    /// How far `p` lies in front of the luminaire's plane (`f64::MAX` for
+    /// an omnidirectional one).
+    pub(super) fn front(&self, p: DVec3) -> f64 {
+        match self.omni {
+            true => f64::MAX,
+            false => (p - self.polygon[0]).dot(self.normal),
         }
     }
 
@@ -93,10 +144,7 @@ impl Luminaire {
             .filter(|&r| {
                 let rec = &receivers[r as usize];
                 let lit = self.polygon.iter().any(|&v| rec.distance(v) > tol);
-                let ahead = rec
-                    .polygon
-                    .iter()
-                    .any(|&v| (v - self.polygon[0]).dot(self.normal) > tol);
+                let ahead = rec.polygon.iter().any(|&v| self.front(v) > tol);
                 lit && ahead
             })
             .collect()
@@ -108,7 +156,8 @@ pub(super) fn scalar(v: DVec3) -> f64 {
     (v.x + v.y + v.z) / 3.0
 }
 
-/// Scalar mean exitance over all emitting area; 0 without emitters.
+/// Scalar mean exitance over all emitting area; without emitters, the
+/// scene's mean source exitance (what its lights bring, over its area).
 pub(super) fn mean_exitance(scene: &Scene) -> f64 {
     let (power, area) = scene
         .patches
@@ -117,7 +166,11 @@ pub(super) fn mean_exitance(scene: &Scene) -> f64 {
         .fold((0.0, 0.0), |(w, a), p| {
             (w + scalar(p.emission) * p.area, a + p.area)
         });
-    if area > 0.0 { power / area } else { 0.0 }
+    if area > 0.0 {
+        power / area
+    } else {
+        scalar(scene.source_power()) / scene.total_area()
+    }
 }
 
 /// The luminaires with at least `min_fraction` of the strongest one's power
@@ -155,6 +208,13 @@ fn luminaires(scene: &Scene, diagonal: f64) -> Vec<Luminaire> {
             _ => out.extend(patches.into_iter().map(|p| Luminaire::single(scene, p))),
         }
     }
+    let lights = &scene.lights.punctual;
+    out.extend(
+        lights
+            .iter()
+            .enumerate()
+            .map(|(k, l)| Luminaire::punctual(scene, k, l)),
+    );
     out
 }
 

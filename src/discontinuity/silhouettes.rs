@@ -45,7 +45,6 @@ impl Context<'_> {
     pub(super) fn jobs(&self, l: usize, stats: &mut DiscontinuityStats) -> Vec<Job> {
         let lum = &self.luminaires[l];
         let tol = self.tol();
-        let front = |p: DVec3| (p - lum.polygon[0]).dot(lum.normal);
         let mut jobs = Vec::new();
         let mut vertex_seen = vec![false; self.occluders.vertices.len()];
         let mut vertex_jobs = Vec::new();
@@ -54,7 +53,11 @@ impl Context<'_> {
                 continue;
             }
             let (pa, pb) = self.occluders.ends(e);
-            let Some((a, b)) = clip_to_half_space(pa, pb, lum.polygon[0], lum.normal, tol) else {
+            let clipped = match lum.omni {
+                true => Some((pa, pb)),
+                false => clip_to_half_space(pa, pb, lum.polygon[0], lum.normal, tol),
+            };
+            let Some((a, b)) = clipped else {
                 continue;
             };
             if !self.maybe_silhouette(e, pa, pb, lum) {
@@ -63,7 +66,7 @@ impl Context<'_> {
             stats.silhouette_edges += 1;
             jobs.push(Job::Edge(i as u32, a, b));
             for (v, p) in [(e.a, pa), (e.b, pb)] {
-                if front(p) > tol && !vertex_seen[v as usize] {
+                if lum.front(p) > tol && !vertex_seen[v as usize] {
                     vertex_seen[v as usize] = true;
                     vertex_jobs.push(Job::Vertex(v));
                 }

@@ -244,7 +244,8 @@ impl Solver<'_> {
     }
 
     /// Per patch, the mean irradiance (over its whole area) that the links
-    /// bring from the sources' emission.
+    /// bring from the sources' emission, and the punctual lights and sky
+    /// bring: the direct light, which the rays do not gather.
     fn direct_irradiance(&self) -> Vec<DVec3> {
         let (scene, h) = (self.scene, &self.hierarchy);
         let mut gathered: Vec<DVec3> = self
@@ -261,6 +262,12 @@ impl Solver<'_> {
             let (_, direct) = c.patch_irradiance(scene, &h.elements, self.settings.seed);
             for (g, d) in gathered.iter_mut().zip(direct) {
                 *g += d;
+            }
+        }
+        // The punctual lights and the sky: direct light too.
+        for ((g, e), x) in gathered.iter_mut().zip(&h.elements).zip(&self.external) {
+            if e.is_leaf() {
+                *g += *x;
             }
         }
         let mut down = vec![DVec3::ZERO; h.len()];

@@ -41,6 +41,7 @@ use crate::hierarchical::hierarchy::{ElementId, Hierarchy};
 use crate::hierarchical::link::{Link, far_apart};
 use crate::hierarchical::solution::Iteration;
 use crate::hierarchical::solver::Solver;
+use crate::illumination::Illumination;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
 
@@ -73,6 +74,35 @@ impl Solver<'_> {
         self.measured = h.len();
     }
 
+    /// Measures what the punctual lights and the sky bring to the elements
+    /// created since the last call ([`Illumination::element`], seeded by
+    /// the element).
+    pub(super) fn measure_external(&mut self) {
+        let first = self.external.len();
+        let n = self.hierarchy.len();
+        if first >= n {
+            return;
+        }
+        let accuracy = &self.settings.accuracy;
+        let illumination =
+            Illumination::new(self.scene, self.bvh, accuracy.sky_rays, self.settings.seed);
+        if illumination.is_dark() {
+            self.external.resize(n, DVec3::ZERO);
+            self.external_spread.resize(n, 0.0);
+            return;
+        }
+        let measured: Vec<(DVec3, f64)> = self.hierarchy.elements[first..]
+            .par_iter()
+            .enumerate()
+            .with_min_len(16)
+            .map(|(i, e)| illumination.element(e.patch, e.vertices(), (first + i) as u64))
+            .collect();
+        for (h, spread) in measured {
+            self.external.push(h);
+            self.external_spread.push(spread);
+        }
+    }
+
     /// Gather + push-pull, the inputs combined by [`Mixing`], until an
     /// iteration would change the reflected power, element by element, by
     /// less than the tolerance times Σ B·A (at least two iterations);
@@ -90,6 +120,7 @@ impl Solver<'_> {
         shares: Option<&[Vec<(u32, Shares)>]>,
     ) -> bool {
         self.measure_exposure();
+        self.measure_external();
         if let Some(c) = &mut self.clusters {
             c.refresh_weights(self.scene, &self.hierarchy.elements, self.settings.seed);
         }
@@ -107,6 +138,17 @@ impl Solver<'_> {
             }
             for (g, c) in gathered.iter_mut().zip(&self.correction) {
                 *g += *c;
+            }
+            // The lights' and sky's light, at the leaves (an element's
+            // own mean: push-down brings nothing of it).
+            for ((g, e), x) in gathered
+                .iter_mut()
+                .zip(&self.hierarchy.elements)
+                .zip(&self.external)
+            {
+                if e.is_leaf() {
+                    *g += *x;
+                }
             }
             let change = mixing.mix(&mut gathered);
             let p = self.push_pull(&gathered, irradiance);

@@ -17,7 +17,7 @@ use crate::hierarchical::oracle::{
     Decision, Oracle, decide, rays_needed, shadow_error, sharpen, split_at_any_visibility,
     visibility_error,
 };
-use crate::hierarchical::solver::{Pair, Solver, weighted_rho};
+use crate::hierarchical::solver::{Pair, Solver, scene_scales, weighted_rho};
 
 impl Solver<'_> {
     /// Carries out a split decision on the counted link (receiver `r`,
@@ -312,6 +312,48 @@ impl Solver<'_> {
             frontier = next;
         }
         moved
+    }
+
+    /// Splits leaves across which the punctual lights' light varies (a
+    /// shadow edge, a spot's rim, a steep falloff): ρ times the spread of
+    /// [`Solver::measure_external`] above `gradient_tol` × the scene's
+    /// exitance, while the area exceeds four times the minimum element
+    /// area, level by level. Links stay on the split element (push-down
+    /// feeds the children) for the oracle to refine. Returns the leaves
+    /// split.
+    pub(super) fn follow_lights(&mut self) -> u64 {
+        if self.scene.lights.punctual.is_empty() {
+            return 0;
+        }
+        let (exitance, _, _) = scene_scales(self.scene);
+        let tol = self.settings.accuracy.gradient_tol * exitance;
+        let bound = 4.0 * self.thresholds.min_area;
+        if !(tol > 0.0) {
+            return 0;
+        }
+        let mut frontier: Vec<ElementId> = self.hierarchy.leaves().collect();
+        let mut splits = 0;
+        while !frontier.is_empty() {
+            self.measure_external();
+            let mut next = Vec::new();
+            for id in frontier {
+                let e = self.hierarchy.get(id);
+                let rho = self.scene.patches[e.patch as usize]
+                    .reflectance
+                    .max_element();
+                if !(e.area > bound && rho * self.external_spread[id.index()] > tol) {
+                    continue;
+                }
+                if self.refuse_split(id, 0) {
+                    break;
+                }
+                splits += 1;
+                next.extend(self.hierarchy.split(id));
+            }
+            self.links.resize_with(self.hierarchy.len(), Vec::new);
+            frontier = next;
+        }
+        splits
     }
 
     /// Re-runs the oracle on every link with the current radiosities and

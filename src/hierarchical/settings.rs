@@ -62,7 +62,14 @@ pub struct Accuracy {
     pub max_elements: Option<u64>,
     /// Refinement rounds (refine, solve) at most.
     pub max_rounds: usize,
+    /// Sky rays per output vertex (`crate::illumination`): the sky's
+    /// irradiance there is a stratified estimate from this many
+    /// directions.
+    pub sky_rays: usize,
 }
+
+/// The most sky rays per point a setting may ask for.
+pub const MAX_SKY_RAYS: usize = 1 << 16;
 
 /// [`Accuracy::bf_relative_floor`] of every preset.
 pub const RELATIVE_FLOOR: f64 = 0.25;
@@ -81,6 +88,7 @@ impl Accuracy {
             max_links: None,
             max_elements: None,
             max_rounds: 3,
+            sky_rays: 256,
         }
     }
 
@@ -99,6 +107,7 @@ impl Accuracy {
             max_links: None,
             max_elements: None,
             max_rounds: 5,
+            sky_rays: 1024,
         }
     }
 
@@ -115,6 +124,7 @@ impl Accuracy {
             max_links: None,
             max_elements: None,
             max_rounds: 8,
+            sky_rays: 4096,
         }
     }
 
@@ -256,6 +266,9 @@ impl HierarchicalSettings {
         }
         if a.max_rounds == 0 {
             return Err(setting("--max-rounds must be at least 1"));
+        }
+        if !(1..=MAX_SKY_RAYS).contains(&a.sky_rays) {
+            return Err(setting(format!("--sky-rays must be in 1..={MAX_SKY_RAYS}")));
         }
         if self
             .time_budget

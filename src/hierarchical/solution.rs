@@ -119,6 +119,11 @@ pub struct HierarchicalSolution {
     /// Per patch, the irradiance the defect correction adds (a mean over
     /// the patch's whole area, like `irradiance`; empty: none).
     pub correction: Vec<DVec3>,
+    /// Per element, the mean irradiance the punctual lights and the sky
+    /// bring (a part of `irradiance` at the leaves; zero without them).
+    pub external: Vec<DVec3>,
+    /// Sky rays per point of the final gather ([`crate::hierarchical::Accuracy::sky_rays`]).
+    pub sky_rays: usize,
     /// What each defect-correction pass found.
     pub correction_passes: Vec<CorrectionPass>,
     /// Per patch, the importance weight refinement used last (empty

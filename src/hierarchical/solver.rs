@@ -26,16 +26,22 @@ use crate::scene::Scene;
 use crate::util::progress::Progress;
 use crate::visibility::TriangleBvh;
 
-/// Mean emitted exitance Φ / A_total (largest channel), and the largest
-/// patch emitted power: the scales of the relative thresholds.
+/// Mean source exitance Φ / A_total (largest channel; Φ the emitted power
+/// and the bound on what the lights and sky bring, [`Scene::source_power`]),
+/// the largest patch emitted power (or that bound, if larger) and the total
+/// area: the scales of the relative thresholds.
 pub(crate) fn scene_scales(scene: &Scene) -> (f64, f64, f64) {
     let area = scene.total_area();
-    let exitance = scene.emitted_power().max_element() / area;
+    let exitance = scene.source_power().max_element() / area;
+    let lights = scene
+        .lights
+        .power_bound(scene.bounds.1 - scene.bounds.0)
+        .max_element();
     let largest = scene
         .patches
         .iter()
         .map(|p| (p.emission * p.area).max_element())
-        .fold(0.0, f64::max);
+        .fold(lights, f64::max);
     (exitance, largest, area)
 }
 
@@ -90,6 +96,12 @@ pub(super) struct Solver<'a> {
     /// Per patch, the irradiance the defect correction adds to every
     /// gather (`super::correction`; empty: none yet).
     pub(super) correction: Vec<DVec3>,
+    /// Per element, the mean irradiance the punctual lights and the sky
+    /// bring (`crate::illumination`), and its spread over the element;
+    /// measured for every element when it is created, used at the
+    /// leaves.
+    pub(super) external: Vec<DVec3>,
+    pub(super) external_spread: Vec<f64>,
 }
 
 /// How much coarser every threshold gets when a budget stops the first
@@ -145,7 +157,15 @@ pub fn solve_hierarchical_guided(
     let guided_splits = solver.follow_discontinuities(guide);
     times.refinement += t.elapsed().as_secs_f64();
 
-    let mut rounds = solver.run_rounds(first_splits + guided_splits, &mut times, progress);
+    let t = Instant::now();
+    let lit_splits = solver.follow_lights();
+    times.refinement += t.elapsed().as_secs_f64();
+
+    let mut rounds = solver.run_rounds(
+        first_splits + guided_splits + lit_splits,
+        &mut times,
+        progress,
+    );
     for pass in 0..settings.correction_passes {
         let t = Instant::now();
         let residual = solver.correct(&rounds.irradiance, settings.correction_rays, pass);
@@ -250,6 +270,8 @@ impl<'a> Solver<'a> {
             coarsened_by: None,
             first_linking: true,
             correction: Vec::new(),
+            external: Vec::new(),
+            external_spread: Vec::new(),
         };
         if let Some(seen) = &settings.importance {
             solver.weight = (0..scene.patches.len())
@@ -272,6 +294,8 @@ impl<'a> Solver<'a> {
         self.budget = None;
         self.resampled = 0;
         self.measured = 0;
+        self.external.clear();
+        self.external_spread.clear();
         self.clusters = None;
         if self.settings.clustering.applies(scene.patches.len()) {
             let mut c = Clusters::new(scene);
@@ -420,6 +444,8 @@ impl<'a> Solver<'a> {
             cluster_irradiance,
             cluster_direct,
             correction: self.correction,
+            external: self.external,
+            sky_rays: self.settings.accuracy.sky_rays,
             correction_passes: rounds.correction_passes,
             links: self.links,
             irradiance: rounds.irradiance,

@@ -41,7 +41,8 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::scene::{
-    Camera, InputTriangle, MAX_COORDINATE, Material, Scene, SourceDocument, Surface, TriangleOrigin,
+    Camera, EnvironmentMap, InputTriangle, LightKind, Lights, MAX_COORDINATE, Material,
+    PunctualLight, Scene, Sky, SourceDocument, Surface, TriangleOrigin,
 };
 
 use self::accessor::Expect;
@@ -70,6 +71,8 @@ pub struct LoadOptions {
     /// Reflectance components at or above this value are clamped to it (with
     /// a warning naming the material). Must lie in (0, 1); default 0.999.
     pub max_reflectance: f64,
+    /// The sky around the scene, if any (`--sky`).
+    pub sky: Option<Arc<Sky>>,
 }
 
 impl LoadOptions {
@@ -87,8 +90,52 @@ impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
             max_reflectance: 0.999,
+            sky: None,
         }
     }
+}
+
+/// The sky of `--sky`: three comma-separated radiances R,G,B (finite, not
+/// negative, W·m⁻²·sr⁻¹) for a uniform sky, else the path of an
+/// equirectangular OpenEXR environment (its first RGB layer; every texel
+/// finite and not negative).
+pub fn parse_sky(spec: &str) -> Result<Sky> {
+    let parts: Vec<&str> = spec.split(',').collect();
+    if parts.len() == 3 {
+        if let Ok(v) = parts
+            .iter()
+            .map(|p| p.trim().parse::<f64>())
+            .collect::<std::result::Result<Vec<f64>, _>>()
+        {
+            let l = DVec3::new(v[0], v[1], v[2]);
+            if !(l.is_finite() && l.min_element() >= 0.0) {
+                return Err(Error::Setting(format!(
+                    "--sky {spec}: the radiances must be finite and not negative"
+                )));
+            }
+            return Ok(Sky::Uniform(l));
+        }
+    }
+    let path = Path::new(spec);
+    let frame = crate::output::exr::read_image(path)?;
+    if let Some(k) = frame
+        .pixels
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite() && *c >= 0.0))
+    {
+        return Err(Error::input(
+            path,
+            format!(
+                "texel {k} of the sky is {:?}: sky radiances must be finite and not negative",
+                frame.pixels[k]
+            ),
+        ));
+    }
+    Ok(Sky::Map(EnvironmentMap {
+        width: frame.width,
+        height: frame.height,
+        texels: frame.pixels,
+    }))
 }
 
 /// Loads the default scene of a `.gltf` or `.glb` file. External buffers and
@@ -161,35 +208,19 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         world: std::mem::take(&mut loader.world),
         materials: loader.material_sources(),
     };
-    let lights = std::mem::take(&mut loader.punctual_lights);
-    let mut warnings = loader.finish_warnings();
-    if !lights.is_empty() {
-        warnings.push(format!(
-            "KHR_lights_punctual: {} light(s) not used ({}): only emissive materials light a \
-             scene yet",
-            lights.len(),
-            lights.join("; ")
-        ));
-    }
-    let built = Scene::build(
+    let lights = Lights {
+        punctual: std::mem::take(&mut loader.punctual_lights),
+        sky: options.sky.as_deref().cloned(),
+    };
+    let warnings = loader.finish_warnings();
+    let mut scene = Scene::build_lit(
         loader.triangles,
         loader.materials.into_iter().map(|m| m.material).collect(),
         loader.surfaces,
         loader.cameras,
         warnings,
-    );
-    let mut scene = match built {
-        Err(Error::NoEmitters) if !lights.is_empty() => {
-            return Err(scene_error(format!(
-                "no emitting surfaces in the scene, and its {} KHR_lights_punctual light(s) \
-                 ({}) are not read yet: only emissive materials (emissiveFactor above 0) \
-                 light a scene",
-                lights.len(),
-                lights.join("; ")
-            )));
-        }
-        other => other?,
-    };
+        lights,
+    )?;
     scene.source = Some(Arc::new(source));
     Ok(scene)
 }
@@ -429,9 +460,9 @@ struct Loader<'a> {
     textures: HashMap<usize, Arc<Texture>>,
     /// World transform of each node reached, by node index.
     world: Vec<Option<DMat4>>,
-    /// The KHR_lights_punctual lights the reached nodes place, as
-    /// "point 'name'", in node order.
-    punctual_lights: Vec<String>,
+    /// The KHR_lights_punctual lights the reached nodes place, in node
+    /// order.
+    punctual_lights: Vec<PunctualLight>,
     warnings: Vec<String>,
     /// Trailing indices that did not form a whole triangle.
     dropped_indices: usize,
@@ -489,7 +520,7 @@ impl Loader<'_> {
             if let Some(camera) = node.camera() {
                 self.add_camera(&node, &camera, &world);
             }
-            if let Some(light) = self.punctual_light(index) {
+            if let Some(light) = self.punctual_light(index, &world)? {
                 self.punctual_lights.push(light);
             }
             let children: Vec<_> = node.children().collect();
@@ -788,40 +819,106 @@ impl Loader<'_> {
         Ok(Some(uvs))
     }
 
-    /// The KHR_lights_punctual light node `index` places, as "point 'name'"
+    /// The KHR_lights_punctual light node `index` places, in world space
     /// (read from the JSON without the `gltf` crate's getters, which
-    /// unwrap).
-    fn punctual_light(&self, index: usize) -> Option<String> {
+    /// unwrap). Position and direction (local −z) come from the node's
+    /// world transform, whose scale does not change the light. Errors name
+    /// the light: an index the file does not define, an unknown type, a
+    /// negative or non-finite intensity or colour, a spot's cone angles
+    /// outside 0 ≤ inner < outer ≤ π/2, a range that is not positive.
+    fn punctual_light(&self, index: usize, world: &DMat4) -> Result<Option<PunctualLight>, String> {
         use gltf::json::extensions::scene::khr_lights_punctual::Type;
+        use gltf::json::validation::Checked;
         let json = self.document.as_json();
-        let light = json
+        let Some(light) = json
             .nodes
-            .get(index)?
-            .extensions
-            .as_ref()?
-            .khr_lights_punctual
-            .as_ref()?
-            .light;
-        let lights = &json
-            .extensions
-            .as_ref()?
-            .khr_lights_punctual
-            .as_ref()?
-            .lights;
-        let i = light.value();
-        let Some(light) = lights.get(i) else {
-            return Some(format!("light {i}, which the file does not define"));
+            .get(index)
+            .and_then(|n| n.extensions.as_ref()?.khr_lights_punctual.as_ref())
+            .map(|l| l.light.value())
+        else {
+            return Ok(None);
         };
-        let kind = match light.type_ {
-            gltf::json::validation::Checked::Valid(Type::Point) => "point",
-            gltf::json::validation::Checked::Valid(Type::Spot) => "spot",
-            gltf::json::validation::Checked::Valid(Type::Directional) => "directional",
-            gltf::json::validation::Checked::Invalid => "unknown",
+        let defined = json
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .and_then(|e| e.lights.get(light));
+        let Some(def) = defined else {
+            return Err(format!(
+                "node {index} places KHR_lights_punctual light {light}, which the file does not \
+                 define"
+            ));
         };
-        Some(match &light.name {
-            Some(name) => format!("{kind} '{}'", short(name)),
-            None => format!("{kind} light {i}"),
-        })
+        let label = match &def.name {
+            Some(name) => format!("light {light} '{}'", short(name)),
+            None => format!("light {light}"),
+        };
+        let colour = DVec3::from(def.color.map(f64::from));
+        let intensity = f64::from(def.intensity);
+        if !(colour.is_finite()
+            && colour.min_element() >= 0.0
+            && intensity.is_finite()
+            && intensity >= 0.0)
+        {
+            return Err(format!(
+                "{label}: colour {:?} and intensity {intensity} must be finite and not negative",
+                def.color
+            ));
+        }
+        let range = def.range.map(f64::from);
+        if range.is_some_and(|r| !(r > 0.0 && r.is_finite())) {
+            return Err(format!("{label}: range {range:?} must be positive"));
+        }
+        let kind = match def.type_ {
+            Checked::Valid(Type::Point) => LightKind::Point,
+            Checked::Valid(Type::Directional) => LightKind::Directional,
+            Checked::Valid(Type::Spot) => {
+                let (inner, outer) = def
+                    .spot
+                    .as_ref()
+                    .map_or((0.0, std::f64::consts::FRAC_PI_4), |s| {
+                        (f64::from(s.inner_cone_angle), f64::from(s.outer_cone_angle))
+                    });
+                if !(0.0 <= inner && inner < outer && outer <= std::f64::consts::FRAC_PI_2 + 1e-6) {
+                    return Err(format!(
+                        "{label}: spot cone angles inner {inner} and outer {outer} must satisfy \
+                         0 <= inner < outer <= pi/2"
+                    ));
+                }
+                LightKind::Spot {
+                    cos_inner: inner.cos(),
+                    cos_outer: outer.cos().max(0.0),
+                }
+            }
+            Checked::Invalid => {
+                return Err(format!(
+                    "{label}: unknown light type (point, spot and directional are read)"
+                ));
+            }
+        };
+        let direction = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+        if direction == DVec3::ZERO && kind != LightKind::Point {
+            return Err(format!(
+                "{label}: the node's transform has no direction (zero scale)"
+            ));
+        }
+        let mut placed = PunctualLight {
+            name: String::new(),
+            kind,
+            position: world.transform_point3(DVec3::ZERO),
+            direction,
+            intensity: colour * intensity,
+            range: if kind == LightKind::Directional {
+                None
+            } else {
+                range
+            },
+        };
+        placed.name = match &def.name {
+            Some(name) => short(name),
+            None => format!("{} light {light}", placed.kind_name()),
+        };
+        Ok(Some(placed))
     }
 
     /// The glTF material index behind each of our materials.

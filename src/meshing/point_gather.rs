@@ -1,8 +1,9 @@
 //! The final gather: the radiosity at any point of a solved scene, from
 //! the links of the leaf that holds the point and of its ancestors, each
 //! source's exact point-to-polygon form factor taken from the point
-//! itself, and the emitters' direct light gathered at the point with its
-//! own visibility rays.
+//! itself, the emitters' direct light gathered at the point with its
+//! own visibility rays, and the punctual lights' and sky's light at the
+//! point (`crate::illumination`).
 //!
 //! Owns: [`point_light`] (one point, one leaf: its radiosity and
 //! irradiance, [`PointLight`]), [`PointEvaluator`]
@@ -23,6 +24,7 @@ use crate::hierarchical::HierarchicalSolution;
 use crate::hierarchical::hierarchy::ElementId;
 use crate::hierarchical::link::weighted_visibility;
 use crate::hierarchical::oracle::receiver_threshold;
+use crate::illumination::Illumination;
 use crate::sampling::{PolygonSampler, pair_stream, stratified};
 use crate::scene::Scene;
 use crate::visibility::{Shaft, TriangleBvh};
@@ -262,6 +264,8 @@ pub fn point_light(
         }
         id = h.get(k).parent();
     }
+    // The punctual lights (exact, so their shadows are sharp) and the sky.
+    irradiance += Illumination::new(scene, bvh, solution.sky_rays, seed).at(e.patch, x);
     PointLight {
         radiosity: patch.emission + patch.reflectance * irradiance,
         irradiance,

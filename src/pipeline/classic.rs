@@ -8,6 +8,7 @@
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use serde_json::json;
 
 use super::{
@@ -17,6 +18,7 @@ use crate::classic::matrix::FormFactorMatrix;
 use crate::classic::solve::{ClassicMethod, Solution, System};
 use crate::classic::uniform::UniformMesh;
 use crate::error::Result;
+use crate::illumination::Illumination;
 use crate::render::frame::Frame;
 use crate::render::render;
 use crate::render::view::View;
@@ -53,17 +55,40 @@ pub(super) fn solve(
 
     let t = Instant::now();
     let (reflectance, emission, area) = mesh.element_values(scene);
+    // The punctual lights' and sky's light: each element reflects its mean
+    // as if it emitted it.
+    let illumination = Illumination::new(scene, &bvh, 1, settings.hierarchical.seed);
+    let external: Vec<DVec3> = mesh
+        .elements
+        .par_iter()
+        .enumerate()
+        .map(|(i, e)| illumination.element(e.patch, &e.corners, i as u64).0)
+        .collect();
+    let source: Vec<DVec3> = (0..emission.len())
+        .map(|i| emission[i] + reflectance[i] * external[i])
+        .collect();
     let system = System {
         matrix: &matrix,
         reflectance: &reflectance,
-        emission: &emission,
+        emission: &source,
         area: &area,
     };
-    let (solution, mut snapshots, snapshot_time) =
+    let (mut solution, mut snapshots, snapshot_time) =
         solve_with_snapshots(scene, settings, method, &mesh, &system, &view)?;
+    for (h, x) in solution.irradiance.iter_mut().zip(&external) {
+        *h += *x;
+    }
     report.times.solve = secs(t) - snapshot_time;
     report.times.render += snapshot_time;
-    report_solution(&mut report, settings, method, &system, &solution);
+    report_solution(
+        &mut report,
+        settings,
+        method,
+        &system,
+        &emission,
+        &external,
+        &solution,
+    );
     drop(matrix);
 
     let t = Instant::now();
@@ -156,14 +181,17 @@ fn report_solution(
     settings: &SolveSettings,
     method: ClassicMethod,
     system: &System,
+    emission: &[DVec3],
+    external: &[DVec3],
     solution: &Solution,
 ) {
     let sum = |f: &dyn Fn(usize) -> DVec3| -> [f64; 3] {
         (0..system.area.len()).map(f).sum::<DVec3>().to_array()
     };
-    let (emission, reflectance, area) = (system.emission, system.reflectance, system.area);
+    let (reflectance, area) = (system.reflectance, system.area);
     report.power = Power {
-        emitted: sum(&|i| emission[i] * area[i]),
+        emitted: sum(&|i| (emission[i] + external[i]) * area[i]),
+        lights: sum(&|i| external[i] * area[i]),
         absorbed: sum(&|i| (DVec3::ONE - reflectance[i]) * solution.irradiance[i] * area[i]),
         radiated: sum(&|i| solution.radiosity[i] * area[i]),
     };

@@ -114,7 +114,8 @@ fn report_solution(
     };
     let patch = |i: usize| &scene.patches[h.elements[i].patch as usize];
     report.power = Power {
-        emitted: sum(&|i| patch(i).emission * h.elements[i].area),
+        emitted: sum(&|i| (patch(i).emission + solution.external[i]) * h.elements[i].area),
+        lights: sum(&|i| solution.external[i] * h.elements[i].area),
         absorbed: sum(&|i| {
             (DVec3::ONE - patch(i).reflectance) * solution.irradiance[i] * h.elements[i].area
         }),

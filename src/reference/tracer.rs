@@ -1,7 +1,9 @@
 //! The path tracer behind every reference: tracing a ray to the radiating
 //! surface it meets, and one sample of the radiance leaving a surface
 //! point (next-event estimation and cosine sampling combined by multiple
-//! importance sampling, Russian roulette).
+//! importance sampling for the emitters, next-event estimation alone for
+//! the punctual lights, cosine sampling alone for the sky; Russian
+//! roulette).
 //!
 //! Invariant: uses the scene, its BVH and the caller's random stream only
 //! (the estimator is documented in the parent module).
@@ -14,7 +16,7 @@ use rand_pcg::Pcg64Mcg;
 
 use super::{MAX_BOUNCES_CAP, MAX_SURVIVAL, ROULETTE_START};
 use crate::error::{Error, Result};
-use crate::sampling::point_in_polygon;
+use crate::sampling::{cosine_direction, point_in_polygon};
 use crate::scene::{Patch, Scene};
 use crate::visibility::{ENDPOINT_GAP, TriangleBvh};
 
@@ -23,6 +25,16 @@ pub(super) struct SurfaceHit<'a> {
     pub(super) point: DVec3,
     pub(super) patch: &'a Patch,
     pub(super) patch_index: u32,
+}
+
+/// What a ray meets first.
+enum Traced<'a> {
+    /// The radiating side of a patch.
+    Hit(SurfaceHit<'a>),
+    /// Nothing: it leaves the scene, into the sky.
+    Escaped,
+    /// The back of a one-sided surface.
+    Blocked,
 }
 
 /// The scene prepared for path tracing.
@@ -39,6 +51,8 @@ pub(super) struct Tracer<'a> {
     pick: Vec<f64>,
     /// Offset of continuation rays off their surface.
     pub(super) offset: f64,
+    /// A distance beyond the whole scene (directional lights' shadow rays).
+    far: f64,
     max_bounces: u32,
 }
 
@@ -61,8 +75,8 @@ impl<'a> Tracer<'a> {
             .iter()
             .map(|&i| power(&scene.patches[i as usize]))
             .sum();
-        if lights.is_empty() || !(total.is_finite() && total > 0.0) {
-            return Err(Error::NoEmitters);
+        if !total.is_finite() || (lights.is_empty() && scene.lights.is_empty()) {
+            return Err(Error::NoLight);
         }
         let mut pick = vec![0.0; scene.patches.len()];
         let mut acc = 0.0;
@@ -83,6 +97,7 @@ impl<'a> Tracer<'a> {
             light_cdf,
             pick,
             offset: ENDPOINT_GAP * scene.diagonal(),
+            far: scene.far(),
             max_bounces: max_bounces.unwrap_or(MAX_BOUNCES_CAP).min(MAX_BOUNCES_CAP),
         })
     }
@@ -90,18 +105,45 @@ impl<'a> Tracer<'a> {
     /// The radiating surface hit first along `o + t d` (`d` unit), or
     /// `None` when the ray escapes or meets the back of a one-sided surface.
     pub(super) fn trace(&self, o: DVec3, d: DVec3) -> Option<SurfaceHit<'a>> {
-        let hit = self.bvh.closest_hit(o, d, f64::from(f32::MAX))?;
+        match self.follow(o, d) {
+            Traced::Hit(hit) => Some(hit),
+            Traced::Escaped | Traced::Blocked => None,
+        }
+    }
+
+    /// What the ray `o + t d` (`d` unit) meets first.
+    fn follow(&self, o: DVec3, d: DVec3) -> Traced<'a> {
+        let Some(hit) = self.bvh.closest_hit(o, d, f64::from(f32::MAX)) else {
+            return Traced::Escaped;
+        };
         let triangle = &self.scene.triangles[hit.triangle as usize];
         let patch_index = if self.normals[hit.triangle as usize].dot(d) < 0.0 {
             triangle.front_patch
         } else {
-            triangle.back_patch?
+            match triangle.back_patch {
+                Some(back) => back,
+                None => return Traced::Blocked,
+            }
         };
-        Some(SurfaceHit {
+        Traced::Hit(SurfaceHit {
             point: o + hit.t * d,
             patch: &self.scene.patches[patch_index as usize],
             patch_index,
         })
+    }
+
+    /// The punctual lights' irradiance at `x` (normal `n`), one shadow ray
+    /// each: delta lights are reached by light sampling only.
+    fn punctual(&self, x: DVec3, n: DVec3) -> DVec3 {
+        let mut h = DVec3::ZERO;
+        for light in &self.scene.lights.punctual {
+            if let Some(i) = light.incident(x, n, self.far) {
+                if self.bvh.visible(x, i.toward) {
+                    h += i.irradiance;
+                }
+            }
+        }
+        h
     }
 
     /// One sample of the radiance arriving at `o` from direction `-d`.
@@ -138,7 +180,9 @@ impl<'a> Tracer<'a> {
             }
             let x = hit.point;
             let n = hit.patch.normal;
-            radiance += throughput * rho * self.direct_by_light_sampling(x, n, rng);
+            radiance += throughput
+                * rho
+                * (self.direct_by_light_sampling(x, n, rng) + self.punctual(x, n) / PI);
 
             // Cosine-weighted continuation: BSDF × cos / pdf = ρ.
             let wi = match first.filter(|_| bounce == 1) {
@@ -150,8 +194,16 @@ impl<'a> Tracer<'a> {
                 break;
             }
             throughput *= rho;
-            let Some(next) = self.trace(x + self.offset * n, wi) else {
-                break;
+            let next = match self.follow(x + self.offset * n, wi) {
+                Traced::Hit(next) => next,
+                Traced::Escaped => {
+                    // The sky, reached by cosine sampling only.
+                    if let Some(sky) = &self.scene.lights.sky {
+                        radiance += throughput * sky.radiance(wi);
+                    }
+                    break;
+                }
+                Traced::Blocked => break,
             };
             if next.patch.is_emitter() {
                 let to_light = next.point - x;
@@ -181,6 +233,9 @@ impl<'a> Tracer<'a> {
     /// integral ∫ L_e cos θ / π dω at `x` (normal `n`): reflected radiance
     /// is ρ times this.
     fn direct_by_light_sampling(&self, x: DVec3, n: DVec3, rng: &mut Pcg64Mcg) -> DVec3 {
+        if self.lights.is_empty() {
+            return DVec3::ZERO;
+        }
         let u: f64 = rng.random();
         let k = self
             .light_cdf
@@ -218,43 +273,9 @@ fn power_weight(p: f64, other: f64) -> f64 {
     }
 }
 
-/// A cosine-distributed unit direction about unit `n` from two uniform
-/// numbers in [0, 1) (Malley's method: uniform disc, projected up).
-fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> DVec3 {
-    let (t, b) = n.any_orthonormal_pair();
-    let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    let z = (1.0 - u1).max(0.0).sqrt();
-    (r * phi.cos() * t + r * phi.sin() * b + z * n).normalize()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::stream;
-
-    #[test]
-    fn cosine_directions_have_the_cosine_moments() {
-        // E[cos θ] = 2/3 and E[cos² θ] = 1/2 for the cosine density.
-        let n = DVec3::new(1.0, 2.0, -0.5).normalize();
-        let mut rng = stream(5, 0);
-        let k = 200_000;
-        let (mut m1, mut m2) = (0.0, 0.0);
-        for _ in 0..k {
-            let d = cosine_direction(n, rng.random(), rng.random());
-            assert!((d.length() - 1.0).abs() < 1e-12);
-            let c = d.dot(n);
-            assert!(c >= 0.0);
-            m1 += c;
-            m2 += c * c;
-        }
-        assert!(
-            (m1 / k as f64 - 2.0 / 3.0).abs() < 3e-3,
-            "{}",
-            m1 / k as f64
-        );
-        assert!((m2 / k as f64 - 0.5).abs() < 3e-3, "{}", m2 / k as f64);
-    }
 
     #[test]
     fn power_weights_sum_to_one_and_survive_extremes() {

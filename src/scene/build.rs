@@ -11,8 +11,8 @@ use glam::DVec3;
 use super::polygon::polygon_area_normal;
 use super::quads::pair_triangles;
 use super::{
-    Camera, InputTriangle, MAX_COORDINATE, Material, Patch, Scene, SceneStats, SceneTriangle,
-    Shape, Side, Surface,
+    Camera, InputTriangle, Lights, MAX_COORDINATE, Material, Patch, Scene, SceneStats,
+    SceneTriangle, Shape, Side, Surface,
 };
 use crate::error::{Error, Result};
 
@@ -20,15 +20,37 @@ use crate::error::{Error, Result};
 const DEGENERATE_HEIGHT: f64 = 1e-9;
 
 impl Scene {
-    /// Builds patches from loaded triangles. Fails when a vertex coordinate
-    /// is not finite or exceeds [`MAX_COORDINATE`] (naming the surface and
-    /// triangle), when nothing usable is left or when nothing emits.
+    /// Builds patches from loaded triangles, lit by their emitters alone.
+    /// Fails when a vertex coordinate is not finite or exceeds
+    /// [`MAX_COORDINATE`] (naming the surface and triangle), when nothing
+    /// usable is left or when nothing emits.
     pub fn build(
         input: Vec<InputTriangle>,
         materials: Vec<Material>,
         surfaces: Vec<Surface>,
         cameras: Vec<Camera>,
+        warnings: Vec<String>,
+    ) -> Result<Scene> {
+        Scene::build_lit(
+            input,
+            materials,
+            surfaces,
+            cameras,
+            warnings,
+            Lights::default(),
+        )
+    }
+
+    /// [`Scene::build`] with punctual lights and a sky besides the
+    /// emitters; fails ([`Error::NoLight`]) only when there is no light of
+    /// any kind.
+    pub fn build_lit(
+        input: Vec<InputTriangle>,
+        materials: Vec<Material>,
+        surfaces: Vec<Surface>,
+        cameras: Vec<Camera>,
         mut warnings: Vec<String>,
+        lights: Lights,
     ) -> Result<Scene> {
         if let Some((i, t)) = input.iter().enumerate().find(|(_, t)| {
             t.positions
@@ -109,8 +131,8 @@ impl Scene {
                 stats.back_patches += 1;
             }
         }
-        if !patches.iter().any(Patch::is_emitter) {
-            return Err(Error::NoEmitters);
+        if !patches.iter().any(Patch::is_emitter) && lights.is_empty() {
+            return Err(Error::NoLight);
         }
         Ok(Scene {
             materials,
@@ -122,6 +144,7 @@ impl Scene {
             stats,
             warnings,
             source: None,
+            lights,
         })
     }
 }

@@ -25,15 +25,20 @@
 //!   p0 ----------- p1            p0 --u-- p1
 //!   P(u,v) bilinear, u,v in [0,1]     P(u,v) = p0 + u(p1-p0) + v(p2-p0), u+v <= 1
 //! ```
-//! - A scene always has at least one patch and one emitting patch.
+//! - A scene always has at least one patch, and some light: an emitting
+//!   patch, a punctual light or a sky.
 //! - Every vertex coordinate is finite and at most [`MAX_COORDINATE`] in
 //!   magnitude.
 
 mod build;
+mod lights;
 mod polygon;
 mod quads;
 mod source;
 
+pub use lights::{
+    EnvironmentMap, Incident, LightKind, Lights, PunctualLight, Sky, cone_falloff, range_window,
+};
 pub use polygon::{polygon_area_normal, polygon_centroid};
 pub use source::{SourceDocument, TriangleOrigin, interpolate_on_patch};
 
@@ -229,6 +234,8 @@ pub struct Scene {
     /// The input document's structure, for the bake; `None` for a scene
     /// not loaded from glTF.
     pub source: Option<Arc<SourceDocument>>,
+    /// The lights that are not surfaces: punctual lights and the sky.
+    pub lights: Lights,
 }
 
 /// Most triangles a scene may hold (after instancing; the loader stops
@@ -266,6 +273,19 @@ impl Scene {
     /// Total emitted power Φ = Σ E_i A_i per channel (W).
     pub fn emitted_power(&self) -> DVec3 {
         self.patches.iter().map(|p| p.emission * p.area).sum()
+    }
+
+    /// The scale of the light entering the scene (W per channel): the
+    /// surfaces' emitted power plus [`Lights::power_bound`]. Relative
+    /// thresholds are fractions of it.
+    pub fn source_power(&self) -> DVec3 {
+        self.emitted_power() + self.lights.power_bound(self.bounds.1 - self.bounds.0)
+    }
+
+    /// A distance from any point of the scene to beyond all of it.
+    pub fn far(&self) -> f64 {
+        2.0 * self.diagonal().max(f64::MIN_POSITIVE)
+            + (self.bounds.0.abs().max(self.bounds.1.abs())).length()
     }
 }
 
@@ -377,6 +397,6 @@ mod tests {
         let mut t = tri([[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]], 0);
         t.emitted_radiance = DVec3::ZERO;
         let err = Scene::build(vec![t], materials(false), surfaces(), vec![], vec![]).unwrap_err();
-        assert!(matches!(err, Error::NoEmitters));
+        assert!(matches!(err, Error::NoLight));
     }
 }

@@ -7,7 +7,10 @@
 //! that the bytes do not depend on the platform's last-bit trigonometry;
 //! materials with `metallicFactor` 0 and `roughnessFactor` 1; the
 //! `KHR_materials_emissive_strength` extension listed in `extensionsUsed`
-//! exactly when a material carries a strength.
+//! exactly when a material carries a strength; the scene's punctual lights
+//! in the root's `KHR_lights_punctual.lights` (no `range`), each placed by a
+//! node, and that extension listed in `extensionsUsed` (never in
+//! `extensionsRequired`) exactly when there is a light.
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -16,7 +19,7 @@ use base64::Engine as _;
 use glam::DVec3;
 use gltf::json::{self, validation::Checked::Valid, validation::USize64};
 
-use super::model::{BufferStorage, SceneDef};
+use super::model::{BufferStorage, LightKind, SceneDef};
 
 /// Rounds a length in metres to the micrometre and stores it as `f32`.
 pub fn quantize(v: f64) -> f32 {
@@ -84,6 +87,61 @@ fn push_view(
         extensions: None,
         extras: Default::default(),
     })
+}
+
+/// The `KHR_lights_punctual` light objects of `scene`, checked against the
+/// extension's ranges.
+fn lights(scene: &SceneDef) -> Result<Vec<json::extensions::scene::khr_lights_punctual::Light>> {
+    use json::extensions::scene::khr_lights_punctual::{Light, Spot, Type};
+    scene
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            if l.color.iter().any(|&c| !(0.0..=1.0).contains(&c)) {
+                bail!("light {}: color must lie in [0, 1]", l.name);
+            }
+            if !(l.intensity.is_finite() && l.intensity >= 0.0) {
+                bail!(
+                    "light {}: intensity must be finite and non-negative",
+                    l.name
+                );
+            }
+            if !scene.nodes.iter().any(|n| n.light == Some(k)) {
+                bail!("light {}: no node places it", l.name);
+            }
+            let (type_, spot) = match l.kind {
+                LightKind::Point => (Type::Point, None),
+                LightKind::Directional => (Type::Directional, None),
+                LightKind::Spot {
+                    inner_cone_angle,
+                    outer_cone_angle,
+                } => {
+                    let ok = 0.0 <= inner_cone_angle
+                        && inner_cone_angle < outer_cone_angle
+                        && outer_cone_angle <= std::f64::consts::FRAC_PI_2;
+                    if !ok {
+                        bail!("light {}: need 0 ≤ inner < outer ≤ π/2 cone angles", l.name);
+                    }
+                    let spot = Spot {
+                        inner_cone_angle: inner_cone_angle as f32,
+                        outer_cone_angle: outer_cone_angle as f32,
+                    };
+                    (Type::Spot, Some(spot))
+                }
+            };
+            Ok(Light {
+                color: l.color.map(|c| c as f32),
+                extensions: None,
+                extras: Default::default(),
+                intensity: l.intensity as f32,
+                name: Some(l.name.to_owned()),
+                range: None,
+                spot,
+                type_: Valid(type_),
+            })
+        })
+        .collect()
 }
 
 fn f32s(v: &[f32]) -> serde_json::Value {
@@ -258,6 +316,9 @@ pub fn encode(scene: &SceneDef) -> Result<(json::Root, Vec<u8>)> {
         if let Some(&c) = node.children.iter().find(|&&c| c >= scene.nodes.len()) {
             bail!("node {}: no child node {c}", node.name);
         }
+        if let Some(k) = node.light.filter(|&k| k >= scene.lights.len()) {
+            bail!("node {}: no light {k}", node.name);
+        }
         root.push(json::Node {
             name: Some(node.name.clone()),
             camera,
@@ -276,7 +337,23 @@ pub fn encode(scene: &SceneDef) -> Result<(json::Root, Vec<u8>)> {
                     .map(|&c| json::Index::new(c as u32))
                     .collect()
             }),
+            extensions: node.light.map(|k| json::extensions::scene::Node {
+                khr_lights_punctual: Some(
+                    json::extensions::scene::khr_lights_punctual::KhrLightsPunctual {
+                        light: json::Index::new(k as u32),
+                    },
+                ),
+            }),
             ..Default::default()
+        });
+    }
+
+    if !scene.lights.is_empty() {
+        root.extensions_used.push("KHR_lights_punctual".to_owned());
+        root.extensions = Some(json::extensions::Root {
+            khr_lights_punctual: Some(json::extensions::root::KhrLightsPunctual {
+                lights: lights(scene)?,
+            }),
         });
     }
 

@@ -1,15 +1,18 @@
 //! The bundled-scene generator behind `cargo run --example gen-scenes`.
 //!
 //! Owns the scene definitions (`cornell`, `goral`, `penumbra`,
-//! `two_squares`, `interior`), the stress scenes of `scenes/stress/`
-//! (`stress`), the scale-up family of `scenes/scale/` (`scale`; only its
-//! 10⁴-triangle member is bundled, the others are written on demand by
-//! [`write_scale`]), their encoding to glTF (`encode`) and the scenes'
-//! README (`readme`, covering all three). Invariant: generation is a pure function of this code, so the
-//! files in `scenes/` are byte-identical on every run; the test
+//! `two_squares`, `interior`, and `spot_room` and `courtyard`, which are lit
+//! by `KHR_lights_punctual` lights instead of emitters), the stress scenes
+//! of `scenes/stress/` (`stress`), the scale-up family of `scenes/scale/`
+//! (`scale`; only its 10⁴-triangle member is bundled, the others are
+//! written on demand by [`write_scale`]), their encoding to glTF (`encode`)
+//! and the scenes' README (`readme`, covering all three). Invariant:
+//! generation is a pure function of this code, so the files in `scenes/`
+//! are byte-identical on every run; the test
 //! `scenes::bundled_scenes_are_up_to_date` regenerates them and compares.
 
 pub mod cornell;
+pub mod courtyard;
 pub mod encode;
 pub mod goral;
 pub mod hard;
@@ -20,6 +23,7 @@ pub mod penumbra;
 pub mod readme;
 pub mod scale;
 pub mod shapes;
+pub mod spot_room;
 pub mod stress;
 pub mod two_squares;
 
@@ -37,6 +41,8 @@ pub fn scenes() -> Vec<SceneDef> {
         penumbra::scene(),
         interior::scene(),
         two_squares::scene(),
+        spot_room::scene(),
+        courtyard::scene(),
     ]
 }
 

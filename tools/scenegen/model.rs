@@ -3,7 +3,10 @@
 //! Geometry is kept in `f64` metres and only rounded to the micrometre (then
 //! to `f32`) by the encoder, so that trigonometry-built shapes give the same
 //! bytes on every run. Every triangle is listed counter-clockwise seen from
-//! its front (lit) side, as glTF requires.
+//! its front (lit) side, as glTF requires. Punctual lights
+//! (`KHR_lights_punctual`) live in the scene's light list and are placed by
+//! the nodes that name them; spot and directional lights shine down their
+//! node's local −z.
 
 use glam::{DAffine3, DQuat, DVec3};
 
@@ -63,12 +66,57 @@ pub struct Camera {
     pub znear: f64,
 }
 
+/// The kind of a `KHR_lights_punctual` light, with its cone for spots.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// Shines equally in every direction from its node's position; the
+    /// node's rotation is ignored.
+    Point,
+    /// Shines down its node's local −z: at full intensity within
+    /// `inner_cone_angle` of that axis, falling to nothing at
+    /// `outer_cone_angle` (radians, 0 ≤ inner < outer ≤ π/2).
+    Spot {
+        inner_cone_angle: f64,
+        outer_cone_angle: f64,
+    },
+    /// Parallel light down its node's local −z, from infinitely far away;
+    /// the node's position is ignored.
+    Directional,
+}
+
+impl LightKind {
+    /// The glTF `type` string.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightKind::Point => "point",
+            LightKind::Spot { .. } => "spot",
+            LightKind::Directional => "directional",
+        }
+    }
+}
+
+/// A `KHR_lights_punctual` light, placed by the node(s) that name it.
+#[derive(Clone, Debug)]
+pub struct Light {
+    pub name: &'static str,
+    pub kind: LightKind,
+    /// Linear RGB `color`, every component in [0, 1].
+    pub color: [f64; 3],
+    /// `intensity`: read as W·sr⁻¹ for point and spot lights and as W·m⁻²
+    /// for directional ones (the glTF spec's candela and lux), so that a
+    /// surface facing the light gets irradiance `color` × I / r² or
+    /// `color` × E.
+    pub intensity: f64,
+}
+
 /// A named node: a mesh, a camera, or a group of children.
 #[derive(Clone, Debug, Default)]
 pub struct Node {
     pub name: String,
     pub mesh: Option<usize>,
     pub camera: Option<Camera>,
+    /// Index into [`SceneDef::lights`] of the light this node places.
+    pub light: Option<usize>,
     pub translation: Option<DVec3>,
     pub rotation: Option<DQuat>,
     /// Scale along the node's local axes (applied first, as glTF does).
@@ -97,6 +145,8 @@ pub struct SceneDef {
     pub materials: Vec<Material>,
     pub meshes: Vec<Mesh>,
     pub nodes: Vec<Node>,
+    /// `KHR_lights_punctual` lights; every one is placed by some node.
+    pub lights: Vec<Light>,
     /// Nodes of the glTF scene's root list, in order.
     pub roots: Vec<usize>,
 }
@@ -111,6 +161,7 @@ impl SceneDef {
             materials: Vec::new(),
             meshes: Vec::new(),
             nodes: Vec::new(),
+            lights: Vec::new(),
             roots: Vec::new(),
         }
     }
@@ -153,6 +204,31 @@ impl SceneDef {
             camera: Some(camera),
             translation: Some(eye),
             rotation: Some(look_rotation(target - eye, up)),
+            ..Node::default()
+        });
+        self.roots.push(node);
+    }
+
+    /// A root node of the light's name placing `light` at `position`; spot
+    /// and directional lights get the rotation that turns their local −z
+    /// along `direction` (+y kept as up as far as possible), point lights
+    /// no rotation.
+    pub fn add_light(&mut self, light: Light, position: DVec3, direction: DVec3) {
+        let rotation = (light.kind != LightKind::Point).then(|| {
+            let up = if direction.normalize().y.abs() > 0.99 {
+                DVec3::NEG_Z
+            } else {
+                DVec3::Y
+            };
+            look_rotation(direction, up)
+        });
+        let name = light.name.to_owned();
+        self.lights.push(light);
+        let node = self.add_node(Node {
+            name,
+            light: Some(self.lights.len() - 1),
+            translation: Some(position),
+            rotation,
             ..Node::default()
         });
         self.roots.push(node);

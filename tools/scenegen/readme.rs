@@ -1,6 +1,6 @@
 //! Writes `scenes/README.md` from the scene definitions, so that every
-//! number in it (reflectances, radiances, areas, triangle counts, camera)
-//! is the one in the files.
+//! number in it (reflectances, radiances, areas, triangle counts, camera,
+//! punctual lights) is the one in the files.
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -11,7 +11,7 @@ use glam::DVec3;
 use super::encode::index_mesh;
 use super::hard::HardScene;
 pub use super::model::triangle_count;
-use super::model::{BufferStorage, SceneDef, world_transforms};
+use super::model::{BufferStorage, LightKind, SceneDef, world_transforms};
 use super::scale::Plan;
 use super::stress::StressScene;
 
@@ -134,12 +134,21 @@ fn scene_section(out: &mut String, scene: &SceneDef, dir: &str, notes: &[String]
             num(area)
         )?;
     }
-    writeln!(
-        out,
-        "\nIn all: {n_tris} triangles, {n_verts} vertices (welded per mesh, counted per node). \
-Emitted power Σ E·A = {} W per channel.\n",
-        rgb(power)
-    )?;
+    if power == [0.0; 3] && !scene.lights.is_empty() {
+        writeln!(
+            out,
+            "\nIn all: {n_tris} triangles, {n_verts} vertices (welded per mesh, counted per \
+node). No surface emits: the punctual lights below are the only sources.\n"
+        )?;
+    } else {
+        writeln!(
+            out,
+            "\nIn all: {n_tris} triangles, {n_verts} vertices (welded per mesh, counted per \
+node). Emitted power Σ E·A = {} W per channel.\n",
+            rgb(power)
+        )?;
+    }
+    lights_table(out, scene)?;
 
     for (n, node) in scene.nodes.iter().enumerate() {
         let (Some(c), Some(xf)) = (node.camera, world[n]) else {
@@ -161,6 +170,77 @@ Emitted power Σ E·A = {} W per channel.\n",
             num(c.aspect_ratio)
         )?;
     }
+    Ok(())
+}
+
+/// The scene's `KHR_lights_punctual` lights, one row per node placing one,
+/// and how their intensities are read; nothing when it has none.
+fn lights_table(out: &mut String, scene: &SceneDef) -> Result<()> {
+    if scene.lights.is_empty() {
+        return Ok(());
+    }
+    let world = world_transforms(scene);
+    writeln!(
+        out,
+        "Lights (`KHR_lights_punctual`, listed in `extensionsUsed`; no `range`):\n"
+    )?;
+    writeln!(
+        out,
+        "| node | light | type | node position (m) | direction | colour | intensity | \
+cone angles inner / outer (rad) |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|")?;
+    for (n, node) in scene.nodes.iter().enumerate() {
+        let (Some(k), Some(xf)) = (node.light, world[n]) else {
+            continue;
+        };
+        let light = &scene.lights[k];
+        let position = xf.transform_point3(DVec3::ZERO);
+        let direction = xf.transform_vector3(DVec3::NEG_Z).normalize();
+        let (direction, cone) = match light.kind {
+            LightKind::Point => ("— (all round)".to_owned(), "—".to_owned()),
+            LightKind::Directional => (vec3(direction), "—".to_owned()),
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => (
+                vec3(direction),
+                format!(
+                    "{} / {} ({}° / {}°)",
+                    num(inner_cone_angle),
+                    num(outer_cone_angle),
+                    num(inner_cone_angle.to_degrees()),
+                    num(outer_cone_angle.to_degrees())
+                ),
+            ),
+        };
+        let unit = match light.kind {
+            LightKind::Directional => "W·m⁻²",
+            _ => "W·sr⁻¹",
+        };
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} {unit} | {} |",
+            node.name,
+            light.name,
+            light.kind.name(),
+            vec3(position),
+            direction,
+            rgb(light.color),
+            num(light.intensity),
+            cone
+        )?;
+    }
+    writeln!(
+        out,
+        "\nUnits: a point light of intensity I and colour c gives a surface at distance r the \
+irradiance c · I cos θ / r² (θ between the surface's normal and the direction to the light), \
+in W·m⁻², the units of the emitters' exitance E = π L_e; so I is read as W·sr⁻¹ where the glTF \
+spec says candela. A spot light gives the same inside its inner cone and nothing beyond its \
+outer cone. A directional light of intensity E gives c · E cos θ everywhere it is not shadowed \
+(E read as W·m⁻² where the spec says lux); its node's position only marks where it comes \
+from. Spot and directional lights shine down their node's local −z.\n"
+    )?;
     Ok(())
 }
 
@@ -191,7 +271,9 @@ walls face into the room, boxes face outwards, lights face down); reflectance \
 `KHR_materials_emissive_strength.emissiveStrength` (1 without the extension), emitted \
 exitance E = π L_e; all materials single-sided, `metallicFactor` 0, `roughnessFactor` 1; \
 quads are written as two triangles; positions are rounded to the micrometre. Each scene has \
-one perspective camera node, which looks down its local −z.\n"
+one perspective camera node, which looks down its local −z. Some scenes are lit instead by \
+`KHR_lights_punctual` lights (listed in `extensionsUsed`, not required), each placed by a \
+node; their sections list them and say how their intensities are read.\n"
     )?;
     writeln!(out, "| scene | title | triangles | buffer |")?;
     writeln!(out, "|---|---|---|---|")?;
