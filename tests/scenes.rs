@@ -113,12 +113,14 @@ fn assert_facing(file: &str, tris: &[Tri], name: &str, expected: DVec3) {
     }
 }
 
-const FILES: [&str; 6] = [
+const FILES: [&str; 8] = [
     "cornell-box.gltf",
     "goral-box.gltf",
     "penumbra.gltf",
     "three-rooms.gltf",
     "two-squares.gltf",
+    "spot-room.gltf",
+    "courtyard.gltf",
     "scale/office-10k.gltf",
 ];
 
@@ -183,10 +185,15 @@ fn every_scene_is_well_formed() {
                 "{file}: {name}"
             );
         }
+        let lights = doc.lights().map_or(0, |l| l.count());
+        let lists_lights = doc.extensions_used().any(|e| e == "KHR_lights_punctual");
+        assert_eq!(lights > 0, lists_lights, "{file}: extensionsUsed");
         assert!(
-            tris.iter()
-                .any(|t| radiance(&doc, t.material).max_element() > 0.0),
-            "{file}: no emitting surface"
+            lights > 0
+                || tris
+                    .iter()
+                    .any(|t| radiance(&doc, t.material).max_element() > 0.0),
+            "{file}: no light"
         );
         for t in &tris {
             assert!(t.area() > 1e-8, "{file}: degenerate triangle in {}", t.node);

@@ -40,28 +40,39 @@ pub struct LoadArgs {
     /// Reflectances at or above this are clamped to it.
     #[arg(long, default_value_t = 0.999)]
     pub max_reflectance: f64,
+}
+
+impl LoadArgs {
+    /// The loader's options, checked.
+    pub fn options(&self) -> Result<LoadOptions> {
+        let options = LoadOptions {
+            max_reflectance: self.max_reflectance,
+            ..LoadOptions::default()
+        };
+        super::checked(options.validate())?;
+        Ok(options)
+    }
+
+    /// [`Self::options`] with the sky of `sky`.
+    pub fn options_with(&self, sky: &SkyArgs) -> Result<LoadOptions> {
+        let mut options = self.options()?;
+        if let Some(spec) = &sky.sky {
+            options.sky = Some(std::sync::Arc::new(nusselt::load::parse_sky(spec)?));
+        }
+        Ok(options)
+    }
+}
+
+/// The sky, for the subcommands that light a scene (`solve`,
+/// `reference`, `probe`).
+#[derive(Args, Debug)]
+pub struct SkyArgs {
     /// The sky around the scene: a uniform radiance R,G,B (W·m⁻²·sr⁻¹),
     /// or an equirectangular OpenEXR environment (y up, the image centre
     /// toward −z). It lights the scene through its openings and absorbs
     /// what leaves.
     #[arg(long, value_name = "R,G,B|FILE.exr", allow_hyphen_values = true)]
     pub sky: Option<String>,
-}
-
-impl LoadArgs {
-    /// The loader's options, checked.
-    pub fn options(&self) -> Result<LoadOptions> {
-        let sky = match &self.sky {
-            Some(spec) => Some(std::sync::Arc::new(nusselt::load::parse_sky(spec)?)),
-            None => None,
-        };
-        let options = LoadOptions {
-            max_reflectance: self.max_reflectance,
-            sky,
-        };
-        super::checked(options.validate())?;
-        Ok(options)
-    }
 }
 
 /// The view and image size, the same for `solve`, `render` and

@@ -15,7 +15,7 @@ use nusselt::load::load_scene;
 use nusselt::reference::{self, ProbeSettings};
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs};
+use super::args::{Common, LoadArgs, SkyArgs};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -43,6 +43,8 @@ pub struct ProbeArgs {
     #[command(flatten)]
     load: LoadArgs,
     #[command(flatten)]
+    sky: SkyArgs,
+    #[command(flatten)]
     common: Common,
 }
 
@@ -50,7 +52,7 @@ pub struct ProbeArgs {
 pub fn run(args: ProbeArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options()?;
+    let options = args.load.options_with(&args.sky)?;
     let settings = ProbeSettings {
         samples: args.spp,
         seed: args.common.seed,

@@ -14,7 +14,7 @@ use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs, ViewArgs};
+use super::args::{Common, LoadArgs, SkyArgs, ViewArgs};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -35,6 +35,8 @@ pub struct ReferenceArgs {
     #[command(flatten)]
     load: LoadArgs,
     #[command(flatten)]
+    sky: SkyArgs,
+    #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
     common: Common,
@@ -44,7 +46,7 @@ pub struct ReferenceArgs {
 pub fn run(args: ReferenceArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options()?;
+    let options = args.load.options_with(&args.sky)?;
     let settings = ReferenceSettings {
         samples_per_pixel: args.view.spp,
         seed: args.common.seed,

@@ -17,7 +17,9 @@ use nusselt::pipeline::{self, Method, SolveSettings};
 use nusselt::render::RenderSettings;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, LoadArgs, ViewArgs};
+use super::args::{
+    Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, LoadArgs, SkyArgs, ViewArgs,
+};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -98,6 +100,8 @@ pub struct SolveArgs {
     #[command(flatten)]
     load: LoadArgs,
     #[command(flatten)]
+    sky: SkyArgs,
+    #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
     common: Common,
@@ -165,7 +169,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let start = Instant::now();
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options()?;
+    let options = args.load.options_with(&args.sky)?;
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }

@@ -1,6 +1,8 @@
 //! Shadow discontinuity segments on receiver patches: the D0 contact lines
-//! where an occluder touches a receiver, and the D1 lines of the critical
-//! wedges of the primary emitters \[LTG92\] \[LTG93\].
+//! where an occluder touches a receiver, the D1 lines of the critical
+//! wedges of the primary emitters \[LTG92\] \[LTG93\], and the hard shadow
+//! lines of the punctual lights (a point light's VE wedges: D0 lines of
+//! its light, no penumbra).
 //!
 //! Owns: the public results ([`Segment`], [`SegmentKind`],
 //! [`Discontinuities`], [`DiscontinuityStats`]), the knobs
@@ -97,7 +99,8 @@ pub struct Segment {
     /// What produced the segment.
     pub kind: SegmentKind,
     /// The luminaire whose wedge made the segment, named by its lowest patch
-    /// index; `None` for contact lines, which belong to no emitter.
+    /// index (punctual light k: the patch count plus k); `None` for
+    /// contact lines, which belong to no emitter.
     pub emitter: Option<u32>,
     /// Significance: the unoccluded irradiance at the midpoint from the
     /// segment's luminaire (from every luminaire, for contact lines) over the
