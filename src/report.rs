@@ -118,6 +118,10 @@ pub struct ConvergenceReport {
     /// Hierarchical: one entry per refinement round.
     #[serde(default)]
     pub rounds: Vec<crate::hierarchical::Round>,
+    /// Hierarchical: refinement ran all `--max-rounds` rounds with links
+    /// still above the threshold (more rounds would refine further).
+    #[serde(default)]
+    pub rounds_exhausted: bool,
 }
 
 /// What the defect correction did (`hierarchical::correction`).

@@ -3,7 +3,7 @@
 
 use std::fs;
 
-use crate::fixtures::{TestMesh, assert_user_error, gltf_json, inward_box, nusselt};
+use crate::fixtures::{TestMesh, assert_user_error, gltf_json, inward_box, nusselt, scene_arg};
 
 fn write(dir: &std::path::Path, name: &str, text: &str) -> String {
     let p = dir.join(name);
@@ -333,4 +333,80 @@ fn list_files(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
         .collect();
     v.sort();
     v
+}
+
+/// Asserts a usage error: exit code 2 and one `error:` line containing
+/// `needle`.
+fn assert_usage_error(out: &std::process::Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    assert!(errors[0].contains(needle), "'{needle}' not in: {stderr}");
+}
+
+#[test]
+fn bad_values_are_usage_errors_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_arg("cornell-box.gltf");
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    for (args, needle) in [
+        (
+            vec!["solve", &scene, "-o", o, "--threads", "0"],
+            "--threads",
+        ),
+        (vec!["solve", &scene, "-o", o, "--width", "0"], "--width"),
+        (
+            vec!["solve", &scene, "-o", o, "--height", "1.5"],
+            "--height",
+        ),
+        (vec!["solve", &scene, "-o", o, "--spp", "0"], "--spp"),
+        (
+            vec!["reference", &scene, "-o", "ref.png"],
+            "must end in .exr",
+        ),
+        (
+            vec!["reference", &scene, "-o", "ref.exr", "--png", "ref.jpg"],
+            "must end in .png",
+        ),
+        (
+            vec!["render", "solution.exr", "-o", "looks.png"],
+            "must end in .exr",
+        ),
+        (
+            vec!["probe", &scene, "--random", "4", "-o", "table.txt"],
+            "must end in .csv",
+        ),
+    ] {
+        assert_usage_error(&nusselt(&args, dir.path()), needle);
+    }
+    assert!(!out.exists(), "nothing written");
+}
+
+#[test]
+fn an_output_folder_that_cannot_be_one_fails_before_the_scene_is_read() {
+    // The scene does not exist: an error about the folder shows that the
+    // folder was checked first, before any loading or solving.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("taken");
+    std::fs::write(&file, b"keep me").unwrap();
+    let inside = file.join("sub");
+    for target in [file.to_str().unwrap(), inside.to_str().unwrap()] {
+        let out = nusselt(&["solve", "missing.gltf", "-q", "-o", target], dir.path());
+        assert_user_error(&out, "is a file, not a folder");
+    }
+    let image = inside.join("ref.exr");
+    let out = nusselt(
+        &[
+            "reference",
+            "missing.gltf",
+            "-q",
+            "-o",
+            image.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_user_error(&out, "is a file, not a folder");
+    assert_eq!(std::fs::read(&file).unwrap(), b"keep me");
 }

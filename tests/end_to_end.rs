@@ -485,3 +485,38 @@ fn irradiance_and_radiosity_agree_at_every_vertex() {
         }
     }
 }
+
+#[test]
+fn a_default_solve_of_every_bundled_scene_prints_no_warning() {
+    // Warnings are for results worse than the settings promise; the
+    // normal path of a default run has none (three-rooms and office-10k
+    // with the slow tests only: half a minute each).
+    let mut scenes = vec![
+        "cornell-box.gltf",
+        "goral-box.gltf",
+        "penumbra.gltf",
+        "two-squares.gltf",
+        "spot-room.gltf",
+        "courtyard.gltf",
+    ];
+    if crate::fixtures::slow_tests("default solves of three-rooms and office-10k print no warning")
+    {
+        scenes.extend(["three-rooms.gltf", "scale/office-10k.gltf"]);
+    }
+    for name in scenes {
+        let scene = bundled_scene(name);
+        assert!(scene.warnings.is_empty(), "{name}: {:?}", scene.warnings);
+        let mut settings = nusselt::SolveSettings {
+            render: RenderSettings::with_samples(1, 0),
+            ..Default::default()
+        };
+        settings.view.width = Some(16);
+        settings.view.height = Some(16);
+        let run = nusselt::solve(&scene, &settings, &nusselt::Progress::hidden()).unwrap();
+        assert!(
+            run.report.warnings.is_empty(),
+            "{name}: {:?}",
+            run.report.warnings
+        );
+    }
+}

@@ -24,7 +24,7 @@ use nusselt::render::view::ViewOverrides;
 #[derive(Args, Debug)]
 pub struct Common {
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one::<usize>)]
     pub threads: Option<usize>,
     /// Seed of every random choice; the same seed gives the same output.
     #[arg(long, default_value_t = 0)]
@@ -80,10 +80,10 @@ pub struct SkyArgs {
 #[derive(Args, Debug)]
 pub struct ViewArgs {
     /// Image width in pixels.
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one::<u32>)]
     pub width: Option<u32>,
     /// Image height in pixels.
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one::<u32>)]
     pub height: Option<u32>,
     /// Camera position X,Y,Z (metres).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -101,7 +101,7 @@ pub struct ViewArgs {
     /// square, and 16 times as many, at most 4096, in pixels whose samples
     /// disagree, such as edges; `reference`: independent paths, at least
     /// 2).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = at_least_one::<u32>)]
     pub spp: u32,
 }
 
@@ -342,4 +342,41 @@ pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
             .ok_or_else(|| format!("'{p}' is not a finite number"))?;
     }
     Ok(DVec3::from_array(v))
+}
+
+/// A file path whose extension is `ext` (case-insensitive): a value
+/// parser, so a wrong one is a usage error (exit 2) before any work.
+fn with_extension(s: &str, ext: &str) -> Result<std::path::PathBuf, String> {
+    let path = std::path::PathBuf::from(s);
+    let ok = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext));
+    match ok {
+        true => Ok(path),
+        false => Err(format!("'{s}' must end in .{ext}")),
+    }
+}
+
+/// An OpenEXR file path (`.exr`).
+pub fn exr_path(s: &str) -> Result<std::path::PathBuf, String> {
+    with_extension(s, "exr")
+}
+
+/// A PNG file path (`.png`).
+pub fn png_path(s: &str) -> Result<std::path::PathBuf, String> {
+    with_extension(s, "png")
+}
+
+/// A CSV file path (`.csv`).
+pub fn csv_path(s: &str) -> Result<std::path::PathBuf, String> {
+    with_extension(s, "csv")
+}
+
+/// A whole number of at least 1.
+pub fn at_least_one<T: std::str::FromStr + PartialOrd + From<u8>>(s: &str) -> Result<T, String> {
+    match s.trim().parse::<T>() {
+        Ok(v) if v >= T::from(1) => Ok(v),
+        _ => Err(format!("'{s}' is not a whole number of at least 1")),
+    }
 }

@@ -15,7 +15,7 @@ use nusselt::load::load_scene;
 use nusselt::reference::{self, ProbeSettings};
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs, SkyArgs};
+use super::args::{Common, LoadArgs, SkyArgs, csv_path};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -32,7 +32,7 @@ pub struct ProbeArgs {
     random: Option<usize>,
     /// The table to write (.csv): the points, their patch, radiosity r,g,b
     /// and its standard error se_r,se_g,se_b.
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = csv_path)]
     output: PathBuf,
     /// Paths per point (at least 2).
     #[arg(long, default_value_t = 4096)]
@@ -59,6 +59,7 @@ pub fn run(args: ProbeArgs) -> Result<()> {
         max_bounces: args.max_bounces,
     };
     checked(settings.validate())?;
+    nusselt::output::check_target(&args.output)?;
     let scene = load_scene(&args.scene, &options)?;
     let probe_points = match (&args.points, args.random) {
         (Some(path), None) => points::read_points(path)?,

@@ -14,7 +14,7 @@ use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs, SkyArgs, ViewArgs};
+use super::args::{Common, LoadArgs, SkyArgs, ViewArgs, exr_path, png_path};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -23,10 +23,10 @@ pub struct ReferenceArgs {
     scene: PathBuf,
     /// The image to write (.exr); `<stem>.noise.exr` and `<stem>.json` go
     /// beside it.
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = exr_path)]
     output: PathBuf,
     /// Also write a tone-mapped PNG here (auto exposure).
-    #[arg(long)]
+    #[arg(long, value_parser = png_path)]
     png: Option<PathBuf>,
     /// Largest number of reflections per path (default: unlimited, ended by
     /// Russian roulette; never more than 10,000).
@@ -53,6 +53,9 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         max_bounces: args.max_bounces,
     };
     checked(settings.validate())?;
+    for target in std::iter::once(&args.output).chain(&args.png) {
+        nusselt::output::check_target(target)?;
+    }
     let scene = load_scene(&args.scene, &options)?;
     let view = View::resolve(scene.cameras.first(), scene.bounds, &args.view.overrides())?;
     let mut result = reference::render_reference(&scene, &view, &settings, &progress)

@@ -17,7 +17,7 @@ use nusselt::render::view::View;
 use nusselt::report::Report;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, ViewArgs};
+use super::args::{Common, ViewArgs, exr_path, png_path};
 use super::init_threads;
 
 #[derive(Args, Debug)]
@@ -25,10 +25,10 @@ pub struct RenderArgs {
     /// A solution.exr written by `nusselt solve`.
     solution: PathBuf,
     /// The image to write (.exr).
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = exr_path)]
     output: PathBuf,
     /// Also write a tone-mapped PNG here.
-    #[arg(long)]
+    #[arg(long, value_parser = png_path)]
     png: Option<PathBuf>,
     /// Display exposure of the PNG (default: the solve's, from the report
     /// beside the solution, else the solution's own).
@@ -45,6 +45,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     super::checked(pipeline::check_exposure(args.exposure))?;
     let progress = Progress::new(!args.common.quiet);
+    for target in std::iter::once(&args.output).chain(&args.png) {
+        nusselt::output::check_target(target)?;
+    }
     let mesh = nusselt::output::exr::read_solution(&args.solution)?;
     mesh.validate()
         .map_err(|e| anyhow::anyhow!("{}: invalid solution: {e}", args.solution.display()))?;

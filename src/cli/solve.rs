@@ -174,6 +174,12 @@ pub fn run(args: SolveArgs) -> Result<()> {
         bail!("--tolerance must be positive");
     }
     let settings = args.settings()?;
+    let dir = args
+        .output
+        .clone()
+        .unwrap_or_else(|| default_folder(&args.scene));
+    // Fail before working: the folder must take the files.
+    nusselt::output::check_folder(&dir)?;
     let scene = load_scene(&args.scene, &options)?;
     let load_time = start.elapsed().as_secs_f64();
     let mut run = pipeline::solve(&scene, &settings, &progress)
@@ -181,7 +187,6 @@ pub fn run(args: SolveArgs) -> Result<()> {
     run.report.scene = args.scene.display().to_string();
     run.report.times.load = load_time;
     run.report.times.total += load_time;
-    let dir = args.output.unwrap_or_else(|| default_folder(&args.scene));
     pipeline::write_outputs(&dir, &mut run)?;
     for w in &run.report.warnings {
         eprintln!("warning: {w}");

@@ -142,6 +142,45 @@ fn split_target(target: &Path) -> Result<(&Path, &OsStr)> {
     Ok((dir, name))
 }
 
+/// Checks, before any work and without creating anything, that files can
+/// be written into `dir`: it is a writable folder, or the nearest folder
+/// above it that exists is writable (and no file stands in its path).
+pub fn check_folder(dir: &Path) -> Result<()> {
+    let existing = dir
+        .ancestors()
+        .find(|a| a.exists())
+        .unwrap_or(Path::new("."));
+    let existing = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
+    if !existing.is_dir() {
+        let what = match existing == dir {
+            true => "it is a file, not a folder".to_string(),
+            false => format!("{} is a file, not a folder", existing.display()),
+        };
+        return Err(Error::output(dir, what));
+    }
+    // Probe: create and remove an empty temporary file.
+    drop(
+        StagedFile::write(&existing.join("nusselt-write-probe"), &[]).map_err(|e| {
+            Error::output(dir, format!("{} is not writable ({e})", existing.display()))
+        })?,
+    );
+    Ok(())
+}
+
+/// Checks, before any work, that `path` can be written: [`check_folder`]
+/// of its folder, and `path` itself is not a folder.
+pub fn check_target(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::output(path, "it is a folder, not a file"));
+    }
+    let (dir, _) = split_target(path)?;
+    check_folder(dir)
+}
+
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder
 /// is written, synced and renamed over `path`. The folder is created when
 /// missing. On failure the temporary file is removed and any earlier file at
@@ -169,6 +208,7 @@ impl OutputSet {
     /// Creates `dir` (and its parents) when missing and checks that files
     /// can be created in it.
     pub fn create(dir: &Path) -> Result<OutputSet> {
+        check_folder(dir)?;
         fs::create_dir_all(dir)
             .map_err(|e| Error::output(dir, format!("cannot create the folder: {e}")))?;
         let meta = fs::metadata(dir).map_err(|e| Error::output(dir, e))?;

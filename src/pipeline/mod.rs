@@ -253,6 +253,7 @@ fn convergence_report<'a>(
             })
             .collect(),
         rounds: Vec::new(),
+        rounds_exhausted: false,
     }
 }
 
