@@ -452,7 +452,7 @@ fn an_environment_map_lights_by_direction() {
 
 #[test]
 fn the_command_line_takes_a_sky_and_refuses_a_bad_one() {
-    use crate::fixtures::{assert_user_error, nusselt, nusselt_ok, scene_arg};
+    use crate::fixtures::{assert_user_error, nusselt, scene_arg};
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let out = dir.join("out");
@@ -464,55 +464,44 @@ fn the_command_line_takes_a_sky_and_refuses_a_bad_one() {
     let sky = dir.join("sky.exr");
     std::fs::write(&sky, nusselt::output::exr::encode_image(&frame).unwrap()).unwrap();
     let scene = scene_arg("courtyard.gltf");
-    let common = [
-        "--accuracy",
-        "preview",
-        "--width",
-        "16",
-        "--height",
-        "9",
-        "-q",
-    ];
-    for sky in ["0.2,0.3,0.4", sky.to_str().unwrap()] {
-        let mut args = vec![
+    let o = out.to_str().unwrap();
+    let solve_with = |flag: &str, value: &str| {
+        let args = [
             "solve",
-            scene.as_str(),
-            "--sky",
-            sky,
+            &scene,
+            flag,
+            value,
             "-o",
-            out.to_str().unwrap(),
+            o,
+            "--accuracy",
+            "preview",
+            "--width",
+            "16",
+            "--height",
+            "9",
+            "-q",
         ];
-        args.extend(common);
-        nusselt_ok(&args, dir);
+        nusselt(&args, dir)
+    };
+    for sky in ["0.2,0.3,0.4", sky.to_str().unwrap()] {
+        let run = solve_with("--sky", sky);
+        assert_eq!(
+            run.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
         let report: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
         let lights = report["power"]["lights"][2].as_f64().unwrap();
         assert!(lights > 0.0, "{report}");
     }
-    for (sky, needle) in [
-        ("-1,0,0", "not negative"),
-        ("nan,0,0", "not negative"),
-        ("missing.exr", "missing.exr"),
+    for (flag, value, needle) in [
+        ("--sky", "-1,0,0", "not negative"),
+        ("--sky", "nan,0,0", "not negative"),
+        ("--sky", "missing.exr", "missing.exr"),
+        ("--sky-rays", "0", "--sky-rays"),
     ] {
-        let mut args = vec![
-            "solve",
-            scene.as_str(),
-            "--sky",
-            sky,
-            "-o",
-            out.to_str().unwrap(),
-        ];
-        args.extend(common);
-        assert_user_error(&nusselt(&args, dir), needle);
+        assert_user_error(&solve_with(flag, value), needle);
     }
-    let mut args = vec![
-        "solve",
-        scene.as_str(),
-        "--sky-rays",
-        "0",
-        "-o",
-        out.to_str().unwrap(),
-    ];
-    args.extend(common);
-    assert_user_error(&nusselt(&args, dir), "--sky-rays");
 }

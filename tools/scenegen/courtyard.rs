@@ -33,7 +33,7 @@
 use glam::DVec3;
 
 use super::lattice::{Lattice, lines};
-use super::model::{BufferStorage, Camera, Light, LightKind, Material, SceneDef};
+use super::model::{BufferStorage, Camera, Light, LightKind, SceneDef};
 use super::shapes::{Side, Tri, cuboid};
 
 /// Half the ground's side, the blocks' depth, the street's width.
@@ -256,52 +256,26 @@ travels along (0.354, −0.707, −0.612): the west and south blocks shade the g
 south edges, and the courtyard faces of the north and east blocks are sunlit."
         .to_owned();
 
-    let mat = |s: &mut SceneDef, name: &'static str, rho: [f64; 3], note: &'static str| {
-        s.add_material(Material {
-            name,
-            reflectance: rho,
-            emission: None,
-            note,
-        })
-    };
-    let paving = mat(
-        &mut s,
-        "paving",
-        [0.5, 0.47, 0.42],
-        "sandstone paving (ground)",
-    );
-    let asphalt = mat(&mut s, "asphalt", [0.15, 0.15, 0.15], "street");
-    let ochre = mat(
-        &mut s,
+    let paving = s.add_diffuse("paving", [0.5, 0.47, 0.42], "sandstone paving (ground)");
+    let asphalt = s.add_diffuse("asphalt", [0.15, 0.15, 0.15], "street");
+    let ochre = s.add_diffuse(
         "plaster_ochre",
         [0.7, 0.55, 0.35],
         "ochre plaster (north block)",
     );
-    let white = mat(
-        &mut s,
+    let white = s.add_diffuse(
         "plaster_white",
         [0.75, 0.73, 0.68],
         "white plaster (east block)",
     );
-    let brick = mat(
-        &mut s,
-        "brick",
-        [0.45, 0.22, 0.16],
-        "red brick (south block)",
-    );
-    let stone = mat(
-        &mut s,
+    let brick = s.add_diffuse("brick", [0.45, 0.22, 0.16], "red brick (south block)");
+    let stone = s.add_diffuse(
         "stone",
         [0.55, 0.52, 0.46],
         "grey limestone (west block, portico)",
     );
-    let tiles = mat(&mut s, "roof_tiles", [0.5, 0.24, 0.16], "terracotta roofs");
-    let wood = mat(
-        &mut s,
-        "weathered_wood",
-        [0.4, 0.33, 0.25],
-        "pergola timber",
-    );
+    let tiles = s.add_diffuse("roof_tiles", [0.5, 0.24, 0.16], "terracotta roofs");
+    let wood = s.add_diffuse("weathered_wood", [0.4, 0.33, 0.25], "pergola timber");
 
     for (name, tris) in shells() {
         let material = match name.as_str() {

@@ -247,62 +247,24 @@ covers x, z ∈ [2, 3] on room A's ceiling):
 ```"
     .to_owned();
 
-    let mat = |s: &mut SceneDef, name: &'static str, rho: [f64; 3], note: &'static str| {
-        s.add_material(Material {
-            name,
-            reflectance: rho,
-            emission: None,
-            note,
-        })
-    };
-    let paint_a = mat(
-        &mut s,
-        "paint_white",
-        [0.78, 0.76, 0.72],
-        "warm white wall paint",
-    );
-    let paint_b = mat(
-        &mut s,
-        "paint_sage",
-        [0.55, 0.62, 0.5],
-        "sage green wall paint",
-    );
-    let paint_c = mat(
-        &mut s,
-        "paint_blue",
-        [0.55, 0.6, 0.7],
-        "pale blue wall paint",
-    );
-    let ceiling = mat(
-        &mut s,
-        "ceiling_white",
-        [0.8, 0.8, 0.8],
-        "white ceiling paint",
-    );
-    let oak = mat(&mut s, "oak_floor", [0.5, 0.35, 0.22], "light oak boards");
-    let carpet = mat(&mut s, "carpet", [0.35, 0.33, 0.3], "grey-beige carpet");
-    let trim = mat(
-        &mut s,
-        "door_trim",
-        [0.7, 0.7, 0.68],
-        "off-white door reveals",
-    );
-    let walnut = mat(
-        &mut s,
-        "walnut",
-        [0.4, 0.25, 0.15],
-        "dark wood (table, stool)",
-    );
-    let fabric = mat(&mut s, "blue_fabric", [0.15, 0.3, 0.6], "chair upholstery");
-    let pine = mat(&mut s, "pine", [0.6, 0.46, 0.32], "light wood (bookshelf)");
-    let cloth = mat(&mut s, "book_cloth", [0.55, 0.15, 0.12], "red book covers");
-    let concrete = mat(&mut s, "concrete", [0.55, 0.55, 0.52], "columns");
-    let orange = mat(&mut s, "orange", [0.75, 0.3, 0.08], "ball on the table");
-    let yellow = mat(&mut s, "yellow", [0.7, 0.6, 0.15], "sphere in room B");
-    let teal = mat(&mut s, "teal", [0.15, 0.5, 0.55], "sphere in room C");
-    let cardboard = mat(&mut s, "cardboard", [0.55, 0.42, 0.28], "boxes");
-    let lacquer = mat(&mut s, "white_lacquer", [0.7, 0.7, 0.68], "cabinet");
-    let velvet = mat(&mut s, "red_velvet", [0.5, 0.12, 0.12], "sofa");
+    let paint_a = s.add_diffuse("paint_white", [0.78, 0.76, 0.72], "warm white wall paint");
+    let paint_b = s.add_diffuse("paint_sage", [0.55, 0.62, 0.5], "sage green wall paint");
+    let paint_c = s.add_diffuse("paint_blue", [0.55, 0.6, 0.7], "pale blue wall paint");
+    let ceiling = s.add_diffuse("ceiling_white", [0.8, 0.8, 0.8], "white ceiling paint");
+    let oak = s.add_diffuse("oak_floor", [0.5, 0.35, 0.22], "light oak boards");
+    let carpet = s.add_diffuse("carpet", [0.35, 0.33, 0.3], "grey-beige carpet");
+    let trim = s.add_diffuse("door_trim", [0.7, 0.7, 0.68], "off-white door reveals");
+    let walnut = s.add_diffuse("walnut", [0.4, 0.25, 0.15], "dark wood (table, stool)");
+    let fabric = s.add_diffuse("blue_fabric", [0.15, 0.3, 0.6], "chair upholstery");
+    let pine = s.add_diffuse("pine", [0.6, 0.46, 0.32], "light wood (bookshelf)");
+    let cloth = s.add_diffuse("book_cloth", [0.55, 0.15, 0.12], "red book covers");
+    let concrete = s.add_diffuse("concrete", [0.55, 0.55, 0.52], "columns");
+    let orange = s.add_diffuse("orange", [0.75, 0.3, 0.08], "ball on the table");
+    let yellow = s.add_diffuse("yellow", [0.7, 0.6, 0.15], "sphere in room B");
+    let teal = s.add_diffuse("teal", [0.15, 0.5, 0.55], "sphere in room C");
+    let cardboard = s.add_diffuse("cardboard", [0.55, 0.42, 0.28], "boxes");
+    let lacquer = s.add_diffuse("white_lacquer", [0.7, 0.7, 0.68], "cabinet");
+    let velvet = s.add_diffuse("red_velvet", [0.5, 0.12, 0.12], "sofa");
     let light = s.add_material(Material {
         name: "light",
         reflectance: [0.8, 0.8, 0.8],

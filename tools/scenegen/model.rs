@@ -171,6 +171,16 @@ impl SceneDef {
         self.materials.len() - 1
     }
 
+    /// A non-emitting material of reflectance `rho`.
+    pub fn add_diffuse(&mut self, name: &'static str, rho: [f64; 3], note: &'static str) -> usize {
+        self.add_material(Material {
+            name,
+            reflectance: rho,
+            emission: None,
+            note,
+        })
+    }
+
     pub fn add_mesh(&mut self, name: &str, material: usize, triangles: Vec<[DVec3; 3]>) -> usize {
         self.meshes.push(Mesh {
             name: name.to_owned(),

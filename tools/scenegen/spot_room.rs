@@ -26,7 +26,7 @@
 use glam::DVec3;
 
 use super::lattice::{Lattice, lines};
-use super::model::{BufferStorage, Camera, Light, LightKind, Material, Node, SceneDef};
+use super::model::{BufferStorage, Camera, Light, LightKind, Node, SceneDef};
 use super::shapes::{Side, Tri, cuboid};
 
 const WIDTH: f64 = 5.0;
@@ -129,42 +129,26 @@ Plan (seen from above; the camera looks from z = 4 towards −z):
 0.15 m off the right wall; ○ where the spot's axis meets the floor."
         .to_owned();
 
-    let mat = |s: &mut SceneDef, name: &'static str, rho: [f64; 3], note: &'static str| {
-        s.add_material(Material {
-            name,
-            reflectance: rho,
-            emission: None,
-            note,
-        })
-    };
-    let white = mat(
-        &mut s,
+    let white = s.add_diffuse(
         "paint_white",
         [0.72, 0.7, 0.67],
         "warm white wall paint (front and right walls)",
     );
-    let blue = mat(
-        &mut s,
+    let blue = s.add_diffuse(
         "paint_blue",
         [0.38, 0.48, 0.62],
         "muted blue wall paint (back wall)",
     );
-    let terracotta = mat(
-        &mut s,
+    let terracotta = s.add_diffuse(
         "paint_terracotta",
         [0.66, 0.34, 0.24],
         "terracotta wall paint (left wall)",
     );
-    let ceiling = mat(
-        &mut s,
-        "ceiling_white",
-        [0.78, 0.78, 0.76],
-        "white ceiling paint",
-    );
-    let oak = mat(&mut s, "oak_floor", [0.5, 0.36, 0.24], "light oak boards");
-    let walnut = mat(&mut s, "walnut", [0.4, 0.25, 0.15], "dark wood (table)");
-    let cardboard = mat(&mut s, "cardboard", [0.55, 0.42, 0.28], "boxes");
-    let grey = mat(&mut s, "grey_crate", [0.45, 0.45, 0.45], "grey crate");
+    let ceiling = s.add_diffuse("ceiling_white", [0.78, 0.78, 0.76], "white ceiling paint");
+    let oak = s.add_diffuse("oak_floor", [0.5, 0.36, 0.24], "light oak boards");
+    let walnut = s.add_diffuse("walnut", [0.4, 0.25, 0.15], "dark wood (table)");
+    let cardboard = s.add_diffuse("cardboard", [0.55, 0.42, 0.28], "boxes");
+    let grey = s.add_diffuse("grey_crate", [0.45, 0.45, 0.45], "grey crate");
 
     for (name, tris) in shell() {
         let material = match name {
