@@ -77,8 +77,8 @@ fn unwritable_output_folder_and_earlier_results_survive() {
             "-q",
             "-o",
             "a-file/out",
-            "--element-size",
-            "0.5",
+            "--accuracy",
+            "preview",
         ],
         dir.path(),
     );
@@ -93,8 +93,8 @@ fn unwritable_output_folder_and_earlier_results_survive() {
             "-q",
             "-o",
             "res",
-            "--element-size",
-            "0.5",
+            "--accuracy",
+            "preview",
             "--width",
             "8",
             "--height",
@@ -409,4 +409,52 @@ fn an_output_folder_that_cannot_be_one_fails_before_the_scene_is_read() {
     );
     assert_user_error(&out, "is a file, not a folder");
     assert_eq!(std::fs::read(&file).unwrap(), b"keep me");
+}
+
+#[test]
+fn a_flag_the_method_does_not_read_is_a_usage_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_arg("cornell-box.gltf");
+    for (extra, needle) in [
+        (
+            &["--kernel", "hemicube"][..],
+            "--kernel applies only to the classic methods",
+        ),
+        (&["--element-size", "0.05"][..], "--element-size"),
+        (
+            &["--hemicube-resolution", "64"][..],
+            "--hemicube-resolution",
+        ),
+        (
+            &["--quadrature-tolerance", "1e-3"][..],
+            "--quadrature-tolerance",
+        ),
+        (&["--samples", "8"][..], "--samples"),
+        (
+            &[
+                "--method",
+                "jacobi",
+                "--accuracy",
+                "high",
+                "--oracle",
+                "ff",
+                "--max-links",
+                "3",
+            ][..],
+            "--accuracy, --oracle, --max-links apply only to --method hierarchical, not to --method jacobi",
+        ),
+        (
+            &["--method", "shooting", "--importance"][..],
+            "--importance",
+        ),
+        (
+            &["--method", "direct", "--sky-rays", "64"][..],
+            "--sky-rays",
+        ),
+    ] {
+        let mut args = vec!["solve", scene.as_str(), "-q", "-o", "out"];
+        args.extend(extra);
+        assert_usage_error(&nusselt(&args, dir.path()), needle);
+    }
+    assert!(!dir.path().join("out").exists(), "nothing written");
 }

@@ -22,7 +22,7 @@ mod study;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -76,7 +76,18 @@ pub fn main() -> ExitCode {
             msg.replace('\n', " ")
         );
     }));
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    // A flag the chosen method does not read is a usage error, not ignored.
+    if let Some(("solve", m)) = matches.subcommand() {
+        if let Some(message) = solve::inapplicable(m) {
+            clap::Error::raw(
+                clap::error::ErrorKind::ArgumentConflict,
+                format!("{message}\n"),
+            )
+            .exit();
+        }
+    }
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Solve(args) => solve::run(*args),
         Command::Render(args) => render::run(args),

@@ -9,6 +9,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
+use clap::ArgMatches;
+use clap::parser::ValueSource;
 use nusselt::classic::solve::Convergence;
 use nusselt::hierarchical::HierarchicalSettings;
 use nusselt::load::load_scene;
@@ -34,7 +36,7 @@ pub struct SolveArgs {
     #[arg(long, value_enum, default_value_t = Method::Hierarchical)]
     method: Method,
     /// Classic methods: largest element edge in metres (default: 1/25 of the
-    /// scene diagonal). Ignored by hierarchical, which sizes its elements
+    /// scene diagonal). Refused with hierarchical, which sizes its elements
     /// itself.
     #[arg(long)]
     element_size: Option<f64>,
@@ -162,6 +164,70 @@ impl SolveArgs {
         checked(settings.validate())?;
         Ok(settings)
     }
+}
+
+/// The flags (argument ids) only the classic methods read.
+const CLASSIC_ONLY: [&str; 6] = [
+    "element_size",
+    "kernel",
+    "samples",
+    "quadrature_tolerance",
+    "hemicube_resolution",
+    "no_hemicube_rotation",
+];
+
+/// The flags (argument ids) only the hierarchical method reads.
+const HIERARCHICAL_ONLY: [&str; 21] = [
+    "accuracy",
+    "oracle",
+    "ff_eps",
+    "bf_eps",
+    "bf_relative_floor",
+    "power_eps",
+    "cluster_eps",
+    "min_area",
+    "gradient_tol",
+    "max_links",
+    "max_elements",
+    "max_rounds",
+    "sky_rays",
+    "clustering",
+    "time_budget",
+    "correction_passes",
+    "correction_rays",
+    "correction_tolerance",
+    "adapt_tol",
+    "uniform_vertices",
+    "importance",
+];
+
+/// The flags given on the command line that the chosen `--method` does
+/// not read, as one sentence; `None` when every flag given applies.
+pub fn inapplicable(matches: &ArgMatches) -> Option<String> {
+    let method = matches
+        .get_one::<Method>("method")
+        .copied()
+        .unwrap_or(Method::Hierarchical);
+    let (ids, applies_to) = match method {
+        Method::Hierarchical => (
+            &CLASSIC_ONLY[..],
+            "the classic methods (--method direct|jacobi|gauss-seidel|shooting)",
+        ),
+        Method::Classic(_) => (&HIERARCHICAL_ONLY[..], "--method hierarchical"),
+    };
+    let given: Vec<String> = ids
+        .iter()
+        .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+        .map(|id| format!("--{}", id.replace('_', "-")))
+        .collect();
+    (!given.is_empty()).then(|| {
+        format!(
+            "{} {} only to {applies_to}, not to --method {}",
+            given.join(", "),
+            if given.len() == 1 { "applies" } else { "apply" },
+            method.name()
+        )
+    })
 }
 
 /// Runs `nusselt solve`.
