@@ -17,7 +17,7 @@
 //! | output mesh and the final gather at its vertices | [`meshing`], [`mesh`] |
 //! | images of the output mesh | [`render`] |
 //! | the independent path tracer | [`reference`](mod@reference) |
-//! | files and the report | [`output`], [`report`] |
+//! | files and the report | [`output`], [`report`], [`schema`] |
 //! | the `solve` job, phase by phase | [`pipeline`] |
 //! | comparison, charts, studies, the failure table | [`lab`] |
 //!
@@ -98,6 +98,7 @@ pub mod output;
 pub mod lightmap;
 
 pub mod report;
+pub mod schema;
 
 // The job, and the tools around it.
 pub mod pipeline;

@@ -54,7 +54,9 @@ const COPLANAR_ANGLE: f64 = 1e-6;
 const COPLANAR_DISTANCE: f64 = 1e-7;
 
 /// Where the atlas's texture coordinates came from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum UvSource {
     /// The input's `TEXCOORD_1`, interpolated at each vertex.
@@ -64,7 +66,7 @@ pub enum UvSource {
 }
 
 /// What building the atlas did, for the report.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 pub struct LightmapStats {
     /// Atlas side in texels.
     pub resolution: u32,

@@ -2,35 +2,43 @@
 //!
 //! Owns: the report's schema. Every field is plain data (serde); the
 //! pipeline fills it, `output` writes it, `nusselt render` reads the view
-//! back from it.
+//! back from it. Its JSON Schema is generated from these types
+//! ([`crate::schema`]).
 //!
-//! Invariant: times are wall-clock seconds per phase; powers are watts per
-//! RGB channel; counts are exact.
+//! Invariants: times are wall-clock seconds per phase; powers are watts per
+//! RGB channel; counts are exact. What does not apply to a run (a phase
+//! its method does not have, the row sums of a matrix the hierarchical
+//! method never builds) is `null`, never a zero. [`SCHEMA_VERSION`] changes
+//! whenever a field is removed, renamed or changes meaning.
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::render::view::View;
 
 /// Seconds spent in each phase of a run.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PhaseTimes {
     /// Reading the scene.
     pub load: f64,
-    /// Hierarchical: initial linking of the input patches.
+    /// Hierarchical: initial linking of the input patches (`null` for the
+    /// classic methods, as every phase a method does not have).
     #[serde(default)]
-    pub linking: f64,
+    pub linking: Option<f64>,
     /// Hierarchical: link and gradient refinement after the first solve.
     #[serde(default)]
-    pub refinement: f64,
+    pub refinement: Option<f64>,
     /// Building the occluder BVH.
     pub bvh: f64,
     /// Hierarchical, discontinuity mesh: finding the discontinuity segments.
     #[serde(default)]
-    pub discontinuities: f64,
+    pub discontinuities: Option<f64>,
     /// Classic: the uniform mesh.
-    pub mesh: f64,
+    #[serde(default)]
+    pub mesh: Option<f64>,
     /// Classic: the form-factor matrix.
-    pub form_factors: f64,
+    #[serde(default)]
+    pub form_factors: Option<f64>,
     /// The solve proper (gathering, shooting or elimination; with the
     /// hierarchical method's defect correction).
     pub solve: f64,
@@ -40,15 +48,25 @@ pub struct PhaseTimes {
     pub render: f64,
     /// With `--lightmap`: charting, packing and filling the atlases.
     #[serde(default)]
-    pub lightmap: f64,
+    pub lightmap: Option<f64>,
     /// Writing the outputs.
     pub write: f64,
     /// The whole run.
     pub total: f64,
 }
 
+impl PhaseTimes {
+    /// Seconds spent building and solving the system: the BVH, the mesh
+    /// and form factors or the linking and refinement, and the solve
+    /// (without loading, discontinuities, output mesh, render and write).
+    pub fn solving(&self) -> f64 {
+        let optional = [self.mesh, self.form_factors, self.linking, self.refinement];
+        self.bvh + optional.into_iter().flatten().sum::<f64>() + self.solve
+    }
+}
+
 /// Sizes of everything the run built.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Counts {
     /// Triangles read from the file.
     pub input_triangles: usize,
@@ -73,18 +91,17 @@ pub struct Counts {
     pub output_vertices: usize,
     /// Triangles of the output mesh.
     pub output_triangles: usize,
-    /// Hierarchical with clustering: clusters above the patches, and the
-    /// links (counted in `links`) with a cluster at one end or both; 0
-    /// without.
+    /// Hierarchical: clusters above the patches (0 without clustering,
+    /// `null` for the classic methods).
     #[serde(default)]
-    pub clusters: usize,
+    pub clusters: Option<usize>,
+    /// Hierarchical: of `links`, those with a cluster at one end or both.
     #[serde(default)]
-    /// Of `links`, the cluster links.
-    pub cluster_links: u64,
+    pub cluster_links: Option<u64>,
 }
 
 /// How the view's importance weighed refinement.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ImportanceReport {
     /// Patches the view sees directly (importance 1).
     pub patches_seen: usize,
@@ -94,7 +111,7 @@ pub struct ImportanceReport {
 }
 
 /// One step of an iterative solve.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct HistoryEntry {
     /// Iteration (sweep or shot) number, from 1.
     pub iteration: usize,
@@ -105,7 +122,7 @@ pub struct HistoryEntry {
 }
 
 /// How the solve ended.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ConvergenceReport {
     /// The tolerance was met.
     pub converged: bool,
@@ -119,13 +136,14 @@ pub struct ConvergenceReport {
     #[serde(default)]
     pub rounds: Vec<crate::hierarchical::Round>,
     /// Hierarchical: refinement ran all `--max-rounds` rounds with links
-    /// still above the threshold (more rounds would refine further).
+    /// still above the threshold (more rounds would refine further);
+    /// `null` for the classic methods.
     #[serde(default)]
-    pub rounds_exhausted: bool,
+    pub rounds_exhausted: Option<bool>,
 }
 
 /// What the defect correction did (`hierarchical::correction`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct CorrectionReport {
     /// What each pass found.
     pub passes: Vec<crate::hierarchical::CorrectionPass>,
@@ -134,7 +152,7 @@ pub struct CorrectionReport {
 }
 
 /// Energy balance, W per channel.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Power {
     /// The power entering the scene: Σ E_i A_i, plus `lights`.
     pub emitted: [f64; 3],
@@ -148,9 +166,15 @@ pub struct Power {
     pub radiated: [f64; 3],
 }
 
+/// The version of the report's layout; see the module doc for when it
+/// changes.
+pub const SCHEMA_VERSION: u32 = 2;
+
 /// The whole report.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Report {
+    /// [`SCHEMA_VERSION`] of the program that wrote it.
+    pub schema_version: u32,
     /// Version of the program that wrote the report.
     pub nusselt_version: String,
     /// The scene file, as given.
@@ -192,10 +216,13 @@ pub struct Report {
     /// Hierarchical: the defect correction (`null` when off).
     #[serde(default)]
     pub correction: Option<CorrectionReport>,
-    /// Closure diagnostics of the form factors: largest and mean Σ_j F_ij.
-    pub max_row_sum: f64,
-    /// Mean Σ_j F_ij over the rows.
-    pub mean_row_sum: f64,
+    /// Classic: closure diagnostics of the form factors, the largest
+    /// Σ_j F_ij (`null` for the hierarchical method, which has no matrix).
+    #[serde(default)]
+    pub max_row_sum: Option<f64>,
+    /// Classic: the mean Σ_j F_ij over the rows.
+    #[serde(default)]
+    pub mean_row_sum: Option<f64>,
     /// The view of the main render.
     pub view: Option<View>,
     /// With `--lightmap`: the atlas (`null` without).

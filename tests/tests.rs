@@ -52,6 +52,8 @@ mod penumbra;
 mod reference;
 // The scale-up office family: triangle counts, validity, deterministic writing.
 mod scale_scenes;
+// The JSON Schemas: equal to the types' and met by every JSON output.
+mod schema;
 // The bundled scenes: up to date with the generator, well formed.
 mod scenes;
 // The stress scenes: invariants every method keeps where methods fail.

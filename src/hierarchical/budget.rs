@@ -8,7 +8,9 @@
 //! ([`Coarsened`]), so that no solve rests on a half-done first linking.
 
 /// A resource budget of the hierarchical solver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Budget {
     /// `Accuracy::max_links`.
@@ -47,7 +49,9 @@ impl Budget {
 /// its limit and the value reached when the solve ended (links, elements,
 /// or estimated bytes; at most the limit unless the initial linking alone
 /// exceeded it).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct BudgetHit {
     /// Which budget.
     pub kind: Budget,
@@ -94,7 +98,9 @@ impl BudgetHit {
 /// The first linking did not fit a budget at the settings' thresholds and
 /// started again with every threshold `factor` times coarser (also
 /// `coarsened` in `report.json`).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct Coarsened {
     /// The budget that stopped the last attempt that did not fit.
     pub by: Budget,

@@ -28,7 +28,9 @@ pub struct Iteration {
 
 /// What one refinement round did: what it split, the sizes after it, and
 /// the solve that followed (also the `rounds` of `report.json`).
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct Round {
     /// Number of the round, from 0.
     pub round: usize,
@@ -65,7 +67,16 @@ pub struct HierarchicalTimes {
 }
 
 /// What one pass of defect correction found (`hierarchical::correction`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
 pub struct CorrectionPass {
     /// The net residual: the area-weighted (ray gather − links) that was
     /// fed back, over the links' reflected light. The first pass says how

@@ -60,7 +60,7 @@ pub const DEFAULT_MAX_ERROR: f64 = 0.2;
 pub const CHANNELS: [&str; 3] = ["R", "G", "B"];
 
 /// Where a maximum occurs.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct PixelAt {
     /// Column, from the left.
     pub x: u32,
@@ -71,7 +71,7 @@ pub struct PixelAt {
 }
 
 /// The metrics of one channel, or of all channels pooled.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ChannelMetrics {
     /// Mean of the test image.
     pub mean_test: f64,
@@ -99,7 +99,7 @@ pub struct ChannelMetrics {
 }
 
 /// Per-channel metrics.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ChannelSet {
     /// Red.
     #[serde(rename = "R")]
@@ -113,7 +113,7 @@ pub struct ChannelSet {
 }
 
 /// Everything `nusselt compare` prints.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Metrics {
     /// The test image's file.
     pub test: String,

@@ -148,7 +148,7 @@ pub struct PointError {
 }
 
 /// Errors over a point table.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, schemars::JsonSchema)]
 pub struct PointScore {
     /// Points compared.
     pub points: usize,

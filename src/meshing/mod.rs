@@ -156,7 +156,9 @@ impl Default for MeshSettings {
 }
 
 /// What [`build_mesh`] did.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 pub struct MeshStats {
     /// [`MeshMode::name`] of the mode used.
     pub mode: String,

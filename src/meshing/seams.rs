@@ -29,7 +29,7 @@ const MIN_REFLECTANCE: f64 = 0.02;
 const RELATIVE_FLOOR: f64 = 0.01;
 
 /// How much the vertices two coplanar patches share disagree.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SeamSteps {
     /// Vertex pairs compared.
     pub pairs: usize,

@@ -47,11 +47,11 @@ pub(super) fn solve(
 
     let t = Instant::now();
     let mesh = UniformMesh::new(scene, element_size);
-    report.times.mesh = secs(t);
+    report.times.mesh = Some(secs(t));
 
     let t = Instant::now();
     let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;
-    report.times.form_factors = secs(t);
+    report.times.form_factors = Some(secs(t));
 
     let t = Instant::now();
     let (reflectance, emission, area) = mesh.element_values(scene);
@@ -118,11 +118,11 @@ pub(super) fn solve(
         memory_bytes: FormFactorMatrix::bytes_for(mesh.elements.len()),
         output_vertices: out.vertex_count(),
         output_triangles: out.triangles.len(),
-        clusters: 0,
-        cluster_links: 0,
+        clusters: None,
+        cluster_links: None,
     };
-    report.max_row_sum = stats.max_row_sum;
-    report.mean_row_sum = stats.mean_row_sum;
+    report.max_row_sum = Some(stats.max_row_sum);
+    report.mean_row_sum = Some(stats.mean_row_sum);
     report.settings = json!({
         "method": method,
         "element_size": element_size,

@@ -38,13 +38,15 @@ pub(super) fn solve(
     report.times.bvh = secs(t);
 
     // The discontinuity mesh's segments also guide the refinement.
-    let t = Instant::now();
     let guide = if settings.mesh.mode == MeshMode::Discontinuity {
-        discontinuity_segments(scene, &bvh, &settings.discontinuity).by_patch(scene.patches.len())
+        let t = Instant::now();
+        let guide = discontinuity_segments(scene, &bvh, &settings.discontinuity)
+            .by_patch(scene.patches.len());
+        report.times.discontinuities = Some(secs(t));
+        guide
     } else {
         Vec::new()
     };
-    report.times.discontinuities = secs(t);
 
     let mut hs = settings.hierarchical.clone();
     if settings.importance {
@@ -97,8 +99,8 @@ fn report_solution(
             patches_weighted: count(&|p| solution.importance.get(p).is_some_and(|&w| w > 0.01)),
         });
     }
-    report.times.linking = solution.times.linking;
-    report.times.refinement = solution.times.refinement;
+    report.times.linking = Some(solution.times.linking);
+    report.times.refinement = Some(solution.times.refinement);
     report.times.solve = solution.times.solve + solution.times.correction;
     if !solution.correction_passes.is_empty() {
         report.correction = Some(CorrectionReport {
@@ -146,7 +148,7 @@ fn report_solution(
     report.coarsened = solution.coarsened;
     // The preset's number of rounds is part of what it promises: running
     // them all is the normal path, recorded, not warned about.
-    report.convergence.rounds_exhausted = solution.rounds_exhausted;
+    report.convergence.rounds_exhausted = Some(solution.rounds_exhausted);
 }
 
 /// The counts of the scene and the solution (the output mesh's are left
@@ -165,8 +167,8 @@ fn solution_counts(scene: &Scene, solution: &HierarchicalSolution) -> Counts {
         memory_bytes: solution.memory_bytes(),
         output_vertices: 0,
         output_triangles: 0,
-        clusters: solution.clusters.as_ref().map_or(0, |c| c.tree.len()),
-        cluster_links: solution.cluster_link_count(),
+        clusters: Some(solution.clusters.as_ref().map_or(0, |c| c.tree.len())),
+        cluster_links: Some(solution.cluster_link_count()),
     }
 }
 

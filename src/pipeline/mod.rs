@@ -227,6 +227,7 @@ pub fn solve(scene: &Scene, settings: &SolveSettings, progress: &Progress) -> Re
 /// scene's warnings.
 fn new_report(scene: &Scene, settings: &SolveSettings) -> Report {
     Report {
+        schema_version: crate::report::SCHEMA_VERSION,
         nusselt_version: env!("CARGO_PKG_VERSION").to_string(),
         method: settings.method.name().into(),
         threads: rayon::current_num_threads(),
@@ -253,7 +254,7 @@ fn convergence_report<'a>(
             })
             .collect(),
         rounds: Vec::new(),
-        rounds_exhausted: false,
+        rounds_exhausted: None,
     }
 }
 
@@ -290,7 +291,7 @@ fn finish(
                 output::png::encode_png(&lightmap.display(), report.exposure)?,
             );
             report.lightmap = Some(lightmap.stats.clone());
-            report.times.lightmap = secs(t);
+            report.times.lightmap = Some(secs(t));
             Some(lightmap)
         }
         None => None,

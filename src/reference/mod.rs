@@ -113,7 +113,7 @@ impl Default for ReferenceSettings {
 }
 
 /// Figures of a reference render; written as the `<stem>.json` sidecar.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ReferenceStats {
     /// The scene file, as given (empty when rendered from memory).
     pub scene: String,

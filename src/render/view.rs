@@ -41,15 +41,19 @@ pub struct ViewOverrides {
 }
 
 /// A pinhole view and image size.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct View {
     /// Camera position.
+    #[schemars(with = "[f64; 3]")]
     pub eye: DVec3,
     /// Unit viewing direction.
+    #[schemars(with = "[f64; 3]")]
     pub forward: DVec3,
     /// Unit right vector of the image plane.
+    #[schemars(with = "[f64; 3]")]
     pub right: DVec3,
     /// Unit up vector of the image plane.
+    #[schemars(with = "[f64; 3]")]
     pub up: DVec3,
     /// Vertical field of view, radians.
     pub yfov: f64,

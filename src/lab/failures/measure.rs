@@ -164,14 +164,7 @@ fn has_non_finite(run: &SolveRun) -> bool {
 /// [`Measure::seconds`]: every phase of the solve, without loading,
 /// rendering and writing.
 fn solve_seconds(t: &PhaseTimes) -> f64 {
-    t.bvh
-        + t.linking
-        + t.refinement
-        + t.discontinuities
-        + t.mesh
-        + t.form_factors
-        + t.solve
-        + t.output_mesh
+    t.solving() + t.discontinuities.unwrap_or(0.0) + t.output_mesh
 }
 
 /// RMSE and mean difference of `frame` against the reference over the

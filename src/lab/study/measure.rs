@@ -69,12 +69,7 @@ impl StudyRow {
             elements: run.report.counts.elements,
             leaves: run.report.counts.leaves,
             links: run.report.counts.links,
-            solve_seconds: times.bvh
-                + times.mesh
-                + times.form_factors
-                + times.linking
-                + times.refinement
-                + times.solve,
+            solve_seconds: times.solving(),
             render_seconds: times.render,
             converged: run.report.convergence.converged,
             rmse: o.rmse,
