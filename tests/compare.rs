@@ -11,7 +11,7 @@ use nusselt::lab::compare::{
     DEFAULT_MAX_ERROR, Named, RELATIVE_EPSILON, compare_files, compare_frames, difference,
     error_images, noise_path, relative_luminance_error,
 };
-use nusselt::output::exr::{decode_image, encode_image};
+use nusselt::output::exr::{ImageInfo, Quantity, decode_image, encode_image};
 use nusselt::render::frame::Frame;
 
 use crate::fixtures::{assert_user_error, nusselt};
@@ -39,7 +39,11 @@ fn metrics(test: &Frame, reference: &Frame) -> nusselt::lab::compare::Metrics {
 
 fn write_exr(dir: &Path, name: &str, frame: &Frame) -> PathBuf {
     let p = dir.join(name);
-    fs::write(&p, encode_image(frame).unwrap()).unwrap();
+    fs::write(
+        &p,
+        encode_image(frame, &ImageInfo::new(Quantity::Radiance)).unwrap(),
+    )
+    .unwrap();
     p
 }
 

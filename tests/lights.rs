@@ -462,7 +462,15 @@ fn the_command_line_takes_a_sky_and_refuses_a_bad_one() {
         pixels: vec![[0.2, 0.3, 0.4]; 8],
     };
     let sky = dir.join("sky.exr");
-    std::fs::write(&sky, nusselt::output::exr::encode_image(&frame).unwrap()).unwrap();
+    std::fs::write(
+        &sky,
+        nusselt::output::exr::encode_image(
+            &frame,
+            &nusselt::output::exr::ImageInfo::new(nusselt::output::exr::Quantity::Radiance),
+        )
+        .unwrap(),
+    )
+    .unwrap();
     let scene = scene_arg("courtyard.gltf");
     let o = out.to_str().unwrap();
     let solve_with = |flag: &str, value: &str| {

@@ -166,6 +166,51 @@ fn listing(dir: &Path) -> Vec<String> {
 type FlatLayer = Layer<AnyChannels<FlatSamples>>;
 
 /// Reads every part of an EXR held in memory with the exr crate.
+/// What the image tests' frames hold.
+fn radiance() -> out_exr::ImageInfo<'static> {
+    out_exr::ImageInfo::new(out_exr::Quantity::Radiance)
+}
+
+/// Reads a whole file's shared attributes and its layers.
+fn read_image(
+    bytes: &[u8],
+) -> exr::prelude::Image<exr::prelude::Layers<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>>
+{
+    exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .unwrap()
+}
+
+/// The `nusselt` header entries of a file (the same in every part).
+fn info_entries(
+    image: &exr::prelude::Image<
+        exr::prelude::Layers<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>,
+    >,
+) -> Vec<String> {
+    let name = exr::prelude::Text::from(out_exr::INFO_ATTRIBUTE);
+    // Written among the attributes every part shares, read back per part.
+    let all: Vec<_> = image
+        .layer_data
+        .iter()
+        .map(|l| l.attributes.other.get(&name))
+        .collect();
+    assert!(
+        all.windows(2).all(|w| w[0] == w[1]),
+        "every part carries the same entries"
+    );
+    match all[0] {
+        Some(exr::prelude::AttributeValue::TextVector(v)) => {
+            v.iter().map(|t| t.to_string()).collect()
+        }
+        other => panic!("no {} string vector: {other:?}", out_exr::INFO_ATTRIBUTE),
+    }
+}
+
 fn read_layers(bytes: &[u8]) -> Vec<FlatLayer> {
     exr::prelude::read()
         .no_deep_data()
@@ -226,7 +271,7 @@ fn assert_input_error(result: nusselt::Result<impl std::fmt::Debug>, file: &Path
 fn solution_round_trips_bit_exact() {
     for n in [0, 1, 1023, 1024, 1025, 3000] {
         let mesh = random_mesh(n, n as u64 + 1);
-        let bytes = out_exr::encode_solution(&mesh).unwrap();
+        let bytes = out_exr::encode_solution(&mesh, "").unwrap();
         let back = out_exr::decode_solution(&bytes, Path::new("mem.exr")).unwrap();
         assert_bit_exact(&mesh, &back);
     }
@@ -237,7 +282,7 @@ fn solution_round_trips_through_a_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("solution.exr");
     let mesh = room_mesh(4, Vec3::new(2.0, 3.0, 4.0));
-    output::write_atomic(&path, &out_exr::encode_solution(&mesh).unwrap()).unwrap();
+    output::write_atomic(&path, &out_exr::encode_solution(&mesh, "").unwrap()).unwrap();
     let back = out_exr::read_solution(&path).unwrap();
     assert_bit_exact(&mesh, &back);
     assert_eq!(mesh, back);
@@ -248,7 +293,7 @@ fn solution_layout_matches_the_contract() {
     for n in [0usize, 1, 1023, 1024, 1025, 3000] {
         let mesh = random_mesh(n, 99 + n as u64);
         let m = mesh.triangles.len();
-        let layers = read_layers(&out_exr::encode_solution(&mesh).unwrap());
+        let layers = read_layers(&out_exr::encode_solution(&mesh, "").unwrap());
         let names: Vec<String> = layers
             .iter()
             .map(|l| l.attributes.layer_name.as_ref().unwrap().to_string())
@@ -342,12 +387,12 @@ fn solution_encoder_rejects_inconsistent_meshes() {
     let mut mesh = random_mesh(10, 5);
     mesh.normals.pop();
     assert!(matches!(
-        out_exr::encode_solution(&mesh),
+        out_exr::encode_solution(&mesh, ""),
         Err(Error::Encode { .. })
     ));
     let mut mesh = random_mesh(10, 5);
     mesh.triangles.push([0, 1, 10]);
-    let err = out_exr::encode_solution(&mesh).unwrap_err();
+    let err = out_exr::encode_solution(&mesh, "").unwrap_err();
     assert!(err.to_string().contains("triangle"), "{err}");
 }
 
@@ -518,7 +563,7 @@ fn solution_reader_rejects_broken_files() {
 fn image_round_trips_bit_exact() {
     for (w, h) in [(1, 1), (7, 3), (64, 48), (1025, 2)] {
         let frame = random_frame(w, h, (w * 31 + h) as u64);
-        let bytes = out_exr::encode_image(&frame).unwrap();
+        let bytes = out_exr::encode_image(&frame, &radiance()).unwrap();
         let back = out_exr::decode_image(&bytes, Path::new("mem.exr")).unwrap();
         assert_eq!((back.width, back.height), (w, h));
         let bits =
@@ -532,7 +577,7 @@ fn image_is_single_part_float_rgb_with_row_zero_on_top() {
     let mut frame = Frame::new(3, 2);
     frame.pixels[0] = [1.0, 2.0, 3.0]; // (0, 0): top left
     frame.pixels[5] = [4.0, 5.0, 6.0]; // (2, 1): bottom right
-    let layers = read_layers(&out_exr::encode_image(&frame).unwrap());
+    let layers = read_layers(&out_exr::encode_image(&frame, &radiance()).unwrap());
     assert_eq!(layers.len(), 1);
     let l = &layers[0];
     assert_eq!((l.size.width(), l.size.height()), (3, 2));
@@ -633,19 +678,123 @@ fn image_reader_rejects_non_rgb_images() {
 #[test]
 fn image_encoder_rejects_inconsistent_frames() {
     assert!(matches!(
-        out_exr::encode_image(&Frame::new(0, 4)),
+        out_exr::encode_image(&Frame::new(0, 4), &radiance()),
         Err(Error::Encode { .. })
     ));
     let mut frame = Frame::new(2, 2);
     frame.pixels.pop();
     assert!(matches!(
-        out_exr::encode_image(&frame),
+        out_exr::encode_image(&frame, &radiance()),
         Err(Error::Encode { .. })
     ));
     assert!(matches!(
         out_png::encode_png(&frame, 1.0),
         Err(Error::Encode { .. })
     ));
+}
+
+#[test]
+fn exr_headers_describe_quantity_units_scene_colour_and_view() {
+    let version = format!("nusselt {}", env!("CARGO_PKG_VERSION"));
+    let rec709 = |image: &exr::prelude::Image<_>| {
+        let c = image.attributes.chromaticities.expect("chromaticities");
+        assert_eq!((c.red.x(), c.red.y()), (0.64, 0.33));
+        assert_eq!((c.green.x(), c.green.y()), (0.30, 0.60));
+        assert_eq!((c.blue.x(), c.blue.y()), (0.15, 0.06));
+        assert_eq!((c.white.x(), c.white.y()), (0.3127, 0.3290));
+    };
+
+    // solution.exr: 3000 vertices (3 rows) and a different number of
+    // triangles; each part's data window is its own, the display window
+    // covers both.
+    let mesh = random_mesh(3000, 5);
+    let bytes = out_exr::encode_solution(&mesh, "scenes/räume.gltf").unwrap();
+    assert_eq!(
+        bytes,
+        out_exr::encode_solution(&mesh, "scenes/räume.gltf").unwrap(),
+        "deterministic"
+    );
+    let image = read_image(&bytes);
+    rec709(&image);
+    let entries = info_entries(&image);
+    for e in [
+        "R G B=radiosity [W/m^2]",
+        "H.R H.G H.B=irradiance [W/m^2]",
+        "P.X P.Y P.Z=position [m]",
+    ] {
+        assert!(entries.iter().any(|x| x == e), "{e} in {entries:?}");
+    }
+    assert!(
+        entries.iter().any(|x| x.starts_with("scene=scenes/r")),
+        "{entries:?}"
+    );
+    let heights: Vec<usize> = image.layer_data.iter().map(|l| l.size.height()).collect();
+    assert_eq!(heights[0], 3);
+    assert_eq!(heights[1], mesh.triangles.len().div_ceil(1024).max(1));
+    assert_ne!(heights[0], heights[1]);
+    assert_eq!(
+        image.attributes.display_window.size.height(),
+        heights[0].max(heights[1])
+    );
+    for layer in image.layer_data.iter() {
+        assert_eq!(
+            layer.attributes.software_name.as_ref().unwrap().to_string(),
+            version
+        );
+        assert!(layer.attributes.comments.is_some());
+    }
+
+    // A render: radiance with its exposure and view; worldToCamera takes
+    // the eye to the origin and the viewing direction to +z.
+    let view = nusselt::render::view::View::resolve(
+        None,
+        (glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0)),
+        &nusselt::render::view::ViewOverrides {
+            width: Some(40),
+            height: Some(20),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let info = radiance()
+        .scene("box.gltf")
+        .view(Some(&view))
+        .exposure(Some(2.5));
+    let frame = random_frame(40, 20, 3);
+    let bytes = out_exr::encode_image(&frame, &info).unwrap();
+    assert_eq!(
+        bytes,
+        out_exr::encode_image(&frame, &info).unwrap(),
+        "deterministic"
+    );
+    let image = read_image(&bytes);
+    rec709(&image);
+    let entries = info_entries(&image);
+    for e in [
+        "R G B=radiance [W/(m^2 sr)]",
+        "scene=box.gltf",
+        "displayExposure=2.5",
+    ] {
+        assert!(entries.iter().any(|x| x == e), "{e} in {entries:?}");
+    }
+    let own = &image.layer_data[0].attributes;
+    let m = own.world_to_camera.expect("worldToCamera");
+    let apply = |p: glam::DVec3| -> [f64; 3] {
+        let p = [p.x, p.y, p.z, 1.0];
+        std::array::from_fn(|c| (0..4).map(|r| p[r] * f64::from(m[r * 4 + c])).sum())
+    };
+    let at_eye = apply(view.eye);
+    let ahead = apply(view.eye + view.forward);
+    for k in 0..3 {
+        assert!(at_eye[k].abs() < 1e-4, "{at_eye:?}");
+        assert!((ahead[k] - [0.0, 0.0, 1.0][k]).abs() < 1e-4, "{ahead:?}");
+    }
+    let yfov = own.vertical_field_of_view.unwrap();
+    assert!((f64::from(yfov) - view.yfov.to_degrees()).abs() < 1e-3);
+    assert!(
+        own.horizontal_field_of_view.unwrap() > yfov,
+        "a 2:1 image is wider than tall"
+    );
 }
 
 // ------------------------------------------------------------------- PNG
@@ -1106,12 +1255,18 @@ fn sample_output_folder_is_complete() {
     .unwrap();
 
     let mut set = OutputSet::create(&dir).unwrap();
-    set.stage("solution.exr", &out_exr::encode_solution(&mesh).unwrap())
-        .unwrap();
+    set.stage(
+        "solution.exr",
+        &out_exr::encode_solution(&mesh, "").unwrap(),
+    )
+    .unwrap();
     set.stage("baked.gltf", &gltf).unwrap();
     set.stage("baked.bin", &bin).unwrap();
-    set.stage("render.exr", &out_exr::encode_image(&frame).unwrap())
-        .unwrap();
+    set.stage(
+        "render.exr",
+        &out_exr::encode_image(&frame, &radiance()).unwrap(),
+    )
+    .unwrap();
     set.stage("render.png", &out_png::encode_png(&frame, 0.05).unwrap())
         .unwrap();
     set.commit().unwrap();

@@ -279,6 +279,29 @@ def run_validator(path):
         raise CheckError(f"glTF Validator: {reason}")
 
 
+REC709 = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
+
+
+def check_header(path, quantity):
+    """Every part of an EXR names its software, Rec. 709 chromaticities and,
+    in the `nusselt` string vector, `quantity` (e.g. `R G B=radiance [...]`)."""
+    import OpenEXR
+
+    for k, part in enumerate(OpenEXR.File(str(path), separate_channels=True).parts):
+        header, where = part.header, f"{path}: part {k}"
+        require(str(header.get("software", "")).startswith("nusselt "), f"{where}: no nusselt software attribute")
+        c = header.get("chromaticities")
+        require(
+            c is not None and all(abs(a - b) < 1e-6 for a, b in zip(c, REC709)),
+            f"{where}: chromaticities {c!r} are not Rec. 709",
+        )
+        entries = header.get("nusselt")
+        require(
+            isinstance(entries, list) and any(e.startswith(quantity) for e in entries),
+            f"{where}: the nusselt attribute {entries!r} lacks {quantity!r}",
+        )
+
+
 def read_rgb(path):
     """A one-part float RGB EXR as an (height, width, 3) numpy array."""
     import numpy as np
@@ -348,6 +371,10 @@ def main(argv):
     try:
         require(outdir.is_dir(), f"{outdir} is not a folder")
         solution = check_solution(outdir / "solution.exr")
+        check_header(outdir / "solution.exr", "R G B=radiosity [W/m^2]")
+        check_header(outdir / "render.exr", "R G B=radiance [W/(m^2 sr)]")
+        if (outdir / "lightmap-H.exr").exists():
+            check_header(outdir / "lightmap-H.exr", "R G B=irradiance [W/m^2]")
         if (outdir / "baked.glb").exists():
             # `--glb`: the same document in one file; the validator reads it.
             run_validator(outdir / "baked.glb")

@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use nusselt::load::load_scene;
+use nusselt::output::exr::{self, ImageInfo, Quantity};
 use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
 use nusselt::util::progress::Progress;
@@ -61,24 +62,29 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     let mut result = reference::render_reference(&scene, &view, &settings, &progress)
         .with_context(|| format!("path tracing {}", args.scene.display()))?;
     result.stats.scene = args.scene.display().to_string();
-    let image = nusselt::output::exr::encode_image(&result.image)?;
-    let noise = nusselt::output::exr::encode_image(&result.noise)?;
     let stats = nusselt::output::write_json(&result.stats)?;
-    let png = match &args.png {
-        Some(path) => {
-            let exposure = nusselt::output::png::auto_exposure(
-                result
-                    .image
-                    .pixels
-                    .iter()
-                    .map(|&p| nusselt::output::png::luminance(p)),
-            );
-            Some((
-                path,
-                nusselt::output::png::encode_png(&result.image, exposure)?,
-            ))
-        }
-        None => None,
+    let exposure = args.png.as_ref().map(|_| {
+        nusselt::output::png::auto_exposure(
+            result
+                .image
+                .pixels
+                .iter()
+                .map(|&p| nusselt::output::png::luminance(p)),
+        )
+    });
+    let info = |quantity| {
+        ImageInfo::new(quantity)
+            .scene(&result.stats.scene)
+            .view(Some(&view))
+    };
+    let image = exr::encode_image(&result.image, &info(Quantity::Radiance).exposure(exposure))?;
+    let noise = exr::encode_image(&result.noise, &info(Quantity::RadianceStandardError))?;
+    let png = match (&args.png, exposure) {
+        (Some(path), Some(exposure)) => Some((
+            path,
+            nusselt::output::png::encode_png(&result.image, exposure)?,
+        )),
+        _ => None,
     };
     nusselt::output::write_atomic(&reference::noise_path(&args.output), &noise)?;
     nusselt::output::write_atomic(&reference::stats_path(&args.output), &stats)?;

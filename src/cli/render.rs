@@ -11,6 +11,7 @@ use anyhow::Result;
 use clap::Args;
 use glam::DVec3;
 
+use nusselt::output::exr::{self, ImageInfo, Quantity};
 use nusselt::pipeline;
 use nusselt::render::RenderSettings;
 use nusselt::render::view::View;
@@ -85,12 +86,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let view = View::resolve(base.as_ref(), (lo, hi), &overrides)?;
     let settings = RenderSettings::with_samples(args.view.spp, args.common.seed);
     let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
-    nusselt::output::write_atomic(&args.output, &nusselt::output::exr::encode_image(&frame)?)?;
-    if let Some(png) = &args.png {
-        let exposure = args
-            .exposure
-            .or(report.map(|r| r.exposure))
-            .unwrap_or_else(|| nusselt::output::png::solution_exposure(&mesh));
+    let exposure = args.png.as_ref().map(|_| {
+        args.exposure
+            .or(report.as_ref().map(|r| r.exposure))
+            .unwrap_or_else(|| nusselt::output::png::solution_exposure(&mesh))
+    });
+    let info = ImageInfo::new(Quantity::Radiance)
+        .scene(report.as_ref().map_or("", |r| r.scene.as_str()))
+        .view(Some(&view))
+        .exposure(exposure);
+    nusselt::output::write_atomic(&args.output, &exr::encode_image(&frame, &info)?)?;
+    if let (Some(png), Some(exposure)) = (&args.png, exposure) {
         nusselt::output::write_atomic(png, &nusselt::output::png::encode_png(&frame, exposure)?)?;
     }
     Ok(())

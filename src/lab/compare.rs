@@ -433,7 +433,10 @@ pub fn error_images(test: &Frame, reference: &Frame, max_error: f64) -> Result<E
             test.width, test.height, reference.width, reference.height
         )));
     }
-    let exr = exr::encode_image(&difference(test, reference))?;
+    let exr = exr::encode_image(
+        &difference(test, reference),
+        &exr::ImageInfo::new(exr::Quantity::RadianceDifference),
+    )?;
     let png = chart::false_colour_png(
         reference.width,
         reference.height,

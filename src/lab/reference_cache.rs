@@ -28,6 +28,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::Result;
 use crate::output;
+use crate::output::exr::{ImageInfo, Quantity};
 use crate::reference::{self, ReferenceImage, ReferenceSettings, ReferenceStats};
 use crate::render::frame::Frame;
 use crate::render::view::View;
@@ -79,7 +80,7 @@ pub(crate) struct ReferenceCache<'a> {
 
 /// One file of a cached reference, before encoding.
 enum Content<'r> {
-    Exr(&'r Frame),
+    Exr(&'r Frame, ImageInfo<'r>),
     Stats(&'r ReferenceStats),
     View(&'r View),
 }
@@ -87,7 +88,7 @@ enum Content<'r> {
 impl Content<'_> {
     fn encode(&self) -> Result<Vec<u8>> {
         match self {
-            Content::Exr(frame) => output::exr::encode_image(frame),
+            Content::Exr(frame, info) => output::exr::encode_image(frame, info),
             Content::Stats(stats) => output::write_json(stats),
             Content::View(view) => output::write_json(view),
         }
@@ -164,9 +165,20 @@ impl ReferenceCache<'_> {
         rendered: &'r ReferenceImage,
     ) -> Vec<(String, Content<'r>)> {
         let stem = self.stem(key);
+        let info = |quantity| {
+            ImageInfo::new(quantity)
+                .scene(key.scene)
+                .view(Some(key.view))
+        };
         let mut out = vec![
-            (format!("{stem}.exr"), Content::Exr(&rendered.image)),
-            (format!("{stem}.noise.exr"), Content::Exr(&rendered.noise)),
+            (
+                format!("{stem}.exr"),
+                Content::Exr(&rendered.image, info(Quantity::Radiance)),
+            ),
+            (
+                format!("{stem}.noise.exr"),
+                Content::Exr(&rendered.noise, info(Quantity::RadianceStandardError)),
+            ),
         ];
         if self.naming == Naming::Sidecars {
             out.push((format!("{stem}.json"), Content::Stats(&rendered.stats)));

@@ -17,6 +17,19 @@
 //!   ...  | ...  | n-1  | 0 (unused, zero) ... |
 //! ```
 //!
+//! Every file this module writes describes itself in its header: the
+//! standard `software` ("nusselt <version>"), `comments` (the quantity and
+//! its units in words) and `chromaticities` (linear Rec. 709 primaries, D65
+//! white), and one `nusselt` string-vector attribute of `key=value` entries
+//! naming each channel group's quantity and units, the scene and, where
+//! they apply, the display exposure and the view ([`ImageInfo`]); an image
+//! rendered from a view also carries the standard `worldToCamera`,
+//! `fieldOfViewHorizontal` and `fieldOfViewVertical`. Each part's data
+//! window is its own size; the display window, which OpenEXR requires to be
+//! the same in every part of a file, covers both parts of `solution.exr`.
+//! The custom entries share one attribute so that the header's bytes do not
+//! depend on a hash map's order.
+//!
 //! Invariants: compression is lossless (ZIP, 16 lines per block), so
 //! [`read_solution`] returns exactly the [`OutputMesh`] that
 //! [`encode_solution`] was given, bit for bit; unused pixels are zero; the
@@ -27,12 +40,14 @@ use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
 
+use ::exr::meta::attribute::Chromaticities;
 use ::exr::prelude::*;
 use glam::Vec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::OutputMesh;
 use crate::render::frame::Frame;
+use crate::render::view::View;
 
 /// Width in pixels of both parts of `solution.exr`.
 pub const ROW_WIDTH: usize = 1024;
@@ -49,6 +64,138 @@ pub const TRIANGLE_COUNT_ATTRIBUTE: &str = "triangleCount";
 const SOLUTION: &str = "the solution (OpenEXR)";
 /// What the image encoder names in its errors.
 const IMAGE: &str = "the image (OpenEXR)";
+
+/// Name of the string-vector header attribute holding nusselt's
+/// `key=value` description of the file.
+pub const INFO_ATTRIBUTE: &str = "nusselt";
+
+/// What the R, G, B channels of an image hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// Radiance toward the camera, W/(m² sr): renders and references.
+    Radiance,
+    /// The standard error of a path-traced radiance estimate, W/(m² sr).
+    RadianceStandardError,
+    /// Test minus reference radiance, W/(m² sr) (`nusselt compare`).
+    RadianceDifference,
+    /// Radiosity B, W/m² (lightmaps).
+    Radiosity,
+    /// Irradiance H, W/m² (lightmaps).
+    Irradiance,
+}
+
+impl Quantity {
+    /// The quantity's name as the header gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Radiance => "radiance",
+            Quantity::RadianceStandardError => "standard error of radiance",
+            Quantity::RadianceDifference => "radiance difference (test - reference)",
+            Quantity::Radiosity => "radiosity",
+            Quantity::Irradiance => "irradiance",
+        }
+    }
+
+    /// Its units, in ASCII.
+    pub fn units(self) -> &'static str {
+        match self {
+            Quantity::Radiosity | Quantity::Irradiance => "W/m^2",
+            _ => "W/(m^2 sr)",
+        }
+    }
+}
+
+/// What an image's header says about it (module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageInfo<'a> {
+    /// What the pixels hold.
+    pub quantity: Quantity,
+    /// The scene file, as given; omitted when empty.
+    pub scene: &'a str,
+    /// The view the image was rendered from.
+    pub view: Option<&'a View>,
+    /// The exposure of the image's display PNG, where one was written.
+    pub exposure: Option<f32>,
+}
+
+impl<'a> ImageInfo<'a> {
+    /// An image of `quantity` with nothing else known.
+    pub fn new(quantity: Quantity) -> ImageInfo<'a> {
+        ImageInfo {
+            quantity,
+            scene: "",
+            view: None,
+            exposure: None,
+        }
+    }
+
+    /// The same, of the scene file `scene`.
+    pub fn scene(self, scene: &'a str) -> ImageInfo<'a> {
+        ImageInfo { scene, ..self }
+    }
+
+    /// The same, rendered from `view`.
+    pub fn view(self, view: Option<&'a View>) -> ImageInfo<'a> {
+        ImageInfo { view, ..self }
+    }
+
+    /// The same, displayed at `exposure`.
+    pub fn exposure(self, exposure: Option<f32>) -> ImageInfo<'a> {
+        ImageInfo { exposure, ..self }
+    }
+}
+
+/// Header text: OpenEXR strings are bytes, these are UTF-8.
+fn text(s: &str) -> Text {
+    Text::from_slice_unchecked(s.as_bytes())
+}
+
+/// Linear Rec. 709 primaries with a D65 white point.
+fn rec709() -> Chromaticities {
+    Chromaticities {
+        red: Vec2(0.64, 0.33),
+        green: Vec2(0.30, 0.60),
+        blue: Vec2(0.15, 0.06),
+        white: Vec2(0.3127, 0.3290),
+    }
+}
+
+/// The attributes every part of a file shares: the chromaticities and the
+/// `nusselt` entries.
+fn shared_attributes(display: IntegerBounds, entries: &[String]) -> ImageAttributes {
+    let mut shared = ImageAttributes::new(display);
+    shared.chromaticities = Some(rec709());
+    shared.other.insert(
+        text(INFO_ATTRIBUTE),
+        AttributeValue::TextVector(entries.iter().map(|e| text(e)).collect()),
+    );
+    shared
+}
+
+/// A part's own standard attributes: software and comments.
+fn own_attributes(name: Option<&str>, comments: &str) -> LayerAttributes {
+    let mut own = match name {
+        Some(name) => LayerAttributes::named(name),
+        None => LayerAttributes::default(),
+    };
+    own.software_name = Some(text(&format!("nusselt {}", env!("CARGO_PKG_VERSION"))));
+    own.comments = Some(text(comments));
+    own
+}
+
+/// `worldToCamera` of `view`: OpenEXR's camera space is left-handed, x
+/// right, y up, z forward, and its matrices act on row vectors (the
+/// translation in the last row).
+fn world_to_camera(view: &View) -> [f32; 16] {
+    let (r, u, f, e) = (view.right, view.up, view.forward, view.eye);
+    let m = [
+        [r.x, u.x, f.x, 0.0],
+        [r.y, u.y, f.y, 0.0],
+        [r.z, u.z, f.z, 0.0],
+        [-r.dot(e), -u.dot(e), -f.dot(e), 1.0],
+    ];
+    std::array::from_fn(|k| m[k / 4][k % 4] as f32)
+}
 
 /// Rows needed for `count` items, at least one (OpenEXR has no empty parts).
 fn rows_for(count: usize) -> usize {
@@ -113,9 +260,10 @@ fn component(values: &[Vec3], axis: usize) -> impl Iterator<Item = f32> + '_ {
     values.iter().map(move |v| v[axis])
 }
 
-/// A part of `solution.exr` with its name and count attribute.
+/// A part of `solution.exr` with its name, comments and count attribute.
 fn solution_part(
     name: &str,
+    comments: &str,
     count_attribute: &str,
     count: usize,
     channels: Vec<AnyChannel<FlatSamples>>,
@@ -126,7 +274,7 @@ fn solution_part(
             format!("{count} items do not fit the {name} part"),
         )
     })?;
-    let mut attributes = LayerAttributes::named(name);
+    let mut attributes = own_attributes(Some(name), comments);
     attributes
         .other
         .insert(Text::from(count_attribute), AttributeValue::I32(count));
@@ -138,11 +286,13 @@ fn solution_part(
     ))
 }
 
-/// Encodes `mesh` as the bytes of `solution.exr` (layout in the module doc).
+/// Encodes `mesh`, solved from the scene file `scene` (as given; omitted
+/// from the header when empty), as the bytes of `solution.exr` (layout in
+/// the module doc).
 ///
 /// Fails when the per-vertex arrays differ in length, a triangle indexes a
 /// missing vertex, or a count exceeds what an EXR `int` attribute holds.
-pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
+pub fn encode_solution(mesh: &OutputMesh, scene: &str) -> Result<Vec<u8>> {
     let n = mesh.positions.len();
     if let Some(message) = mesh.length_mismatch() {
         return Err(Error::encode(SOLUTION, message));
@@ -162,6 +312,9 @@ pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
     let v_len = ROW_WIDTH * rows_for(n);
     let vertices = solution_part(
         VERTICES_PART,
+        "per output vertex: radiosity B in W/m^2 (R G B), irradiance H in W/m^2 \
+         (H.R H.G H.B), position in m (P.X P.Y P.Z), unit normal (N.X N.Y N.Z), \
+         input patch index (patch); linear Rec. 709 RGB",
         VERTEX_COUNT_ATTRIBUTE,
         n,
         vec![
@@ -186,6 +339,8 @@ pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
     let corner = |c: usize| mesh.triangles.iter().map(move |t| t[c]);
     let triangles = solution_part(
         TRIANGLES_PART,
+        "per output triangle: indices of its vertices in the vertices part, \
+         counter-clockwise seen from the front (I0 I1 I2)",
         TRIANGLE_COUNT_ATTRIBUTE,
         m,
         vec![
@@ -200,7 +355,20 @@ pub fn encode_solution(mesh: &OutputMesh) -> Result<Vec<u8>> {
         ROW_WIDTH,
         vertices.size.height().max(triangles.size.height()),
     ));
-    let image = Image::from_layers(ImageAttributes::new(display), vec![vertices, triangles]);
+    let mut entries = vec![
+        "R G B=radiosity [W/m^2]".to_string(),
+        "H.R H.G H.B=irradiance [W/m^2]".to_string(),
+        "P.X P.Y P.Z=position [m]".to_string(),
+        "N.X N.Y N.Z=unit normal".to_string(),
+        "patch=input patch index".to_string(),
+    ];
+    if !scene.is_empty() {
+        entries.push(format!("scene={scene}"));
+    }
+    let image = Image::from_layers(
+        shared_attributes(display, &entries),
+        vec![vertices, triangles],
+    );
     write_bytes(&image, SOLUTION)
 }
 
@@ -387,8 +555,9 @@ impl<'a> SolutionPart<'a> {
 }
 
 /// Encodes `frame` as a single-part OpenEXR image with float32 channels
-/// R, G, B (linear radiance), row 0 at the top, losslessly compressed.
-pub fn encode_image(frame: &Frame) -> Result<Vec<u8>> {
+/// R, G, B (linear Rec. 709), row 0 at the top, losslessly compressed, its
+/// header describing it as `info` says (module doc).
+pub fn encode_image(frame: &Frame, info: &ImageInfo) -> Result<Vec<u8>> {
     let (w, h) = (frame.width as usize, frame.height as usize);
     if w == 0 || h == 0 {
         return Err(Error::encode(IMAGE, format!("the image is {w}×{h} pixels")));
@@ -401,9 +570,35 @@ pub fn encode_image(frame: &Frame) -> Result<Vec<u8>> {
     }
     let channel =
         |name: &str, c: usize| f32_channel(name, w * h, frame.pixels.iter().map(|p| p[c]));
+    let quantity = format!("{} [{}]", info.quantity.name(), info.quantity.units());
+    let mut entries = vec![format!("R G B={quantity}")];
+    let mut comments = format!("{quantity}, linear Rec. 709 RGB");
+    if !info.scene.is_empty() {
+        entries.push(format!("scene={}", info.scene));
+        comments.push_str(&format!(", of {}", info.scene));
+    }
+    if let Some(exposure) = info.exposure {
+        entries.push(format!("displayExposure={exposure}"));
+    }
+    let mut attributes = own_attributes(None, &comments);
+    if let Some(view) = info.view {
+        let yfov = view.yfov;
+        let xfov =
+            2.0 * ((yfov / 2.0).tan() * f64::from(view.width) / f64::from(view.height)).atan();
+        attributes.world_to_camera = Some(world_to_camera(view));
+        attributes.vertical_field_of_view = Some(yfov.to_degrees() as f32);
+        attributes.horizontal_field_of_view = Some(xfov.to_degrees() as f32);
+        entries.push(format!(
+            "view=eye {:?} forward {:?} up {:?} yfov {:.6} rad",
+            view.eye.to_array(),
+            view.forward.to_array(),
+            view.up.to_array(),
+            yfov
+        ));
+    }
     let layer = Layer::new(
         (w, h),
-        LayerAttributes::default(),
+        attributes,
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(vec![
             channel("R", 0),
@@ -413,7 +608,7 @@ pub fn encode_image(frame: &Frame) -> Result<Vec<u8>> {
     );
     let display = IntegerBounds::from_dimensions(layer.size);
     write_bytes(
-        &Image::from_layers(ImageAttributes::new(display), vec![layer]),
+        &Image::from_layers(shared_attributes(display, &entries), vec![layer]),
         IMAGE,
     )
 }

@@ -27,6 +27,7 @@ use crate::lightmap::Lightmap;
 use crate::mesh::OutputMesh;
 use crate::meshing::MeshSettings;
 use crate::output::baked::BakeLayout;
+use crate::output::exr::{ImageInfo, Quantity};
 use crate::output::{self, OutputSet};
 use crate::render::RenderSettings;
 use crate::render::frame::Frame;
@@ -335,7 +336,15 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     let t = Instant::now();
     let mut set = OutputSet::create(dir)?;
     let exposure = run.report.exposure;
-    set.stage("solution.exr", &output::exr::encode_solution(&run.mesh)?)?;
+    let scene = run.report.scene.as_str();
+    let info = |quantity| ImageInfo::new(quantity).scene(scene);
+    let view_info = info(Quantity::Radiance)
+        .view(run.report.view.as_ref())
+        .exposure(Some(exposure));
+    set.stage(
+        "solution.exr",
+        &output::exr::encode_solution(&run.mesh, scene)?,
+    )?;
     if run.glb {
         set.stage(
             "baked.glb",
@@ -350,15 +359,18 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     if let Some(lightmap) = &run.lightmap {
         set.stage(
             "lightmap-B.exr",
-            &output::exr::encode_image(&lightmap.radiosity)?,
+            &output::exr::encode_image(&lightmap.radiosity, &info(Quantity::Radiosity))?,
         )?;
         set.stage(
             "lightmap-H.exr",
-            &output::exr::encode_image(&lightmap.irradiance)?,
+            &output::exr::encode_image(&lightmap.irradiance, &info(Quantity::Irradiance))?,
         )?;
         set.stage("lightmap.png", run.bake.lightmap_png().unwrap_or_default())?;
     }
-    set.stage("render.exr", &output::exr::encode_image(&run.frame)?)?;
+    set.stage(
+        "render.exr",
+        &output::exr::encode_image(&run.frame, &view_info)?,
+    )?;
     let png = match &run.wireframe {
         Some(coverage) => {
             let overlay = output::png::Overlay {
@@ -373,7 +385,7 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     for (iteration, frame) in &run.snapshots {
         set.stage(
             &format!("snapshot-{iteration:05}.exr"),
-            &output::exr::encode_image(frame)?,
+            &output::exr::encode_image(frame, &view_info)?,
         )?;
         set.stage(
             &format!("snapshot-{iteration:05}.png"),
