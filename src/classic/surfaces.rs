@@ -25,6 +25,26 @@ pub enum SurfaceMethod {
 }
 
 impl SurfaceMethod {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SurfaceMethod::Analytic => "analytic",
+            SurfaceMethod::Sampling => "sampling",
+            SurfaceMethod::Hemicube => "hemicube",
+        }
+    }
+
+    /// The method computed by `kernel`, if one is.
+    pub fn of(kernel: Kernel) -> Option<SurfaceMethod> {
+        [
+            SurfaceMethod::Analytic,
+            SurfaceMethod::Sampling,
+            SurfaceMethod::Hemicube,
+        ]
+        .into_iter()
+        .find(|m| m.kernel() == kernel)
+    }
+
     /// The kernel that computes it.
     pub fn kernel(self) -> Kernel {
         match self {

@@ -8,7 +8,8 @@
 //! subcommands call before any work.
 
 use anyhow::{Result, bail};
-use clap::Args;
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args};
 use glam::DVec3;
 
 use nusselt::classic::matrix::{Kernel, MatrixSettings};
@@ -22,12 +23,13 @@ use nusselt::render::view::ViewOverrides;
 
 /// Threads, seed and quiet, common to every subcommand that computes.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Run")]
 pub struct Common {
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = at_least_one::<usize>)]
     pub threads: Option<usize>,
     /// Seed of every random choice; the same seed gives the same output.
-    #[arg(long, default_value_t = 0)]
+    #[arg(hide_short_help = true, long, default_value_t = 0)]
     pub seed: u64,
     /// No progress bars and no summary line.
     #[arg(long, short)]
@@ -36,9 +38,10 @@ pub struct Common {
 
 /// How the scene is read.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Scene")]
 pub struct LoadArgs {
     /// Reflectances at or above this are clamped to it.
-    #[arg(long, default_value_t = 0.999)]
+    #[arg(hide_short_help = true, long, default_value_t = 0.999)]
     pub max_reflectance: f64,
 }
 
@@ -66,6 +69,7 @@ impl LoadArgs {
 /// The sky, for the subcommands that light a scene (`solve`,
 /// `reference`, `probe`).
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Scene")]
 pub struct SkyArgs {
     /// The sky around the scene: a uniform radiance R,G,B (W·m⁻²·sr⁻¹),
     /// or an equirectangular OpenEXR environment (y up, the image centre
@@ -78,6 +82,7 @@ pub struct SkyArgs {
 /// The view and image size, the same for `solve`, `render` and
 /// `reference` so that their images line up pixel for pixel.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "View")]
 pub struct ViewArgs {
     /// Image width in pixels.
     #[arg(long, value_parser = at_least_one::<u32>)]
@@ -122,78 +127,77 @@ impl ViewArgs {
 /// The hierarchical method's accuracy: one preset, and expert overrides of
 /// each of its thresholds.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Hierarchical")]
 pub struct HierarchicalArgs {
     /// Accuracy preset of the hierarchical method; the flags below override
     /// single thresholds.
-    #[arg(long, value_enum, default_value_t = Preset::Default)]
+    #[arg(help_heading = "Accuracy", long, value_enum, default_value_t = Preset::Default)]
     pub accuracy: Preset,
     /// Refinement oracle of the hierarchical method.
-    #[arg(long, value_enum, default_value_t = Oracle::Bf)]
+    #[arg(hide_short_help = true, long, value_enum, default_value_t = Oracle::Bf)]
     pub oracle: Oracle,
     /// ff oracle: largest form factor a link may keep.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub ff_eps: Option<f64>,
     /// bf oracle: largest ρ·B·(form-factor and visibility error) a link may
     /// keep, as a fraction of the mean emitted exitance.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub bf_eps: Option<f64>,
     /// bf oracle, relative mode: a link's threshold follows its receiver's
     /// radiosity, down to this fraction of the threshold for receivers
-    /// dimmer than the mean emitted exitance by as much (1: absolute;
-    /// every preset: 0.25).
-    #[arg(long, value_name = "FLOOR")]
+    /// dimmer than the mean emitted exitance by as much (1: absolute).
+    #[arg(hide_short_help = true, long, value_name = "FLOOR")]
     pub bf_relative_floor: Option<f64>,
     /// power oracle: largest power a link may carry, as a fraction of the
     /// largest patch emitted power.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub power_eps: Option<f64>,
     /// Cluster oracle: largest ρ·(irradiance error) a link with a cluster
     /// at one end may keep, as a fraction of the mean emitted exitance.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub cluster_eps: Option<f64>,
     /// Smallest element, as a fraction of the total surface area.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub min_area: Option<f64>,
     /// Split leaves whose radiosity differs from a sibling's by more than
     /// this fraction of the mean emitted exitance (0 disables).
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub gradient_tol: Option<f64>,
     /// Link budget: no split takes the link count past N; refinement stops
     /// there (the report says so).
-    #[arg(long, value_name = "N")]
+    #[arg(help_heading = "Budgets", long, value_name = "N")]
     pub max_links: Option<f64>,
     /// Element budget: no split takes the hierarchy past N elements;
     /// refinement stops there (the report says so).
-    #[arg(long, value_name = "N")]
+    #[arg(help_heading = "Budgets", long, value_name = "N")]
     pub max_elements: Option<f64>,
     /// Refinement rounds (refine + solve) at most.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub max_rounds: Option<usize>,
-    /// Sky rays per output vertex (with --sky): preview 256, default 1024,
-    /// high 4096.
-    #[arg(long)]
+    /// Sky rays per output vertex (with --sky).
+    #[arg(hide_short_help = true, long)]
     pub sky_rays: Option<usize>,
     /// Start the links from a cluster hierarchy above the patches (no
     /// step over every pair of patches); auto clusters scenes of 1,000
     /// patches or more.
-    #[arg(long, value_enum, default_value_t = Clustering::Auto)]
+    #[arg(hide_short_help = true, long, value_enum, default_value_t = Clustering::Auto)]
     pub clustering: Clustering,
     /// Seconds of linking and refinement after which the links as they are
     /// get solved (the report says so); results then depend on the
     /// machine's speed.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(help_heading = "Budgets", long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
 
     /// Passes of defect correction after the last round: the solution's
     /// own radiosities gathered by rays at every patch, the difference
     /// from what its links deliver fed back, the links solved again (0:
     /// off)
-    #[arg(long, default_value_t = DEFAULT_CORRECTION_PASSES,
+    #[arg(hide_short_help = true, long, default_value_t = DEFAULT_CORRECTION_PASSES,
           value_parser = clap::value_parser!(u32).range(0..=8))]
     pub correction_passes: u32,
 
     /// Rays per patch of each correction pass (a patch smaller than the mean: a share by its area; any patch: 16 per leaf)
-    #[arg(long, default_value_t = DEFAULT_CORRECTION_RAYS as u64,
+    #[arg(hide_short_help = true, long, default_value_t = DEFAULT_CORRECTION_RAYS as u64,
           value_parser = clap::value_parser!(u64).range(1..=65536))]
     pub correction_rays: u64,
 
@@ -201,7 +205,7 @@ pub struct HierarchicalArgs {
     /// zero or known to this fraction of its light; a patch whose own rays
     /// fall short borrows the pooled correction of the patches around it
     /// that face the same way
-    #[arg(long, default_value_t = DEFAULT_CORRECTION_TOLERANCE)]
+    #[arg(help_heading = "Budgets", hide_short_help = true, hide_short_help = true, long, default_value_t = DEFAULT_CORRECTION_TOLERANCE)]
     pub correction_tolerance: f64,
 }
 
@@ -273,29 +277,28 @@ fn count(name: &str, v: Option<f64>) -> Result<Option<u64>> {
     }
 }
 
-/// How form factors are computed.
+/// How form factors are computed: each kernel's own knobs (the kernel is
+/// chosen by `solve --kernel` or `formfactors --method`).
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Kernel")]
 pub struct KernelArgs {
-    /// Form-factor kernel.
-    #[arg(long, value_enum, default_value_t = Kernel::PointPolygon)]
-    pub kernel: Kernel,
     /// Visibility rays per element pair (point-polygon; default 4), per
     /// quadrature point (polygon-polygon; default 4) or per link
     /// (hierarchical; default 32).
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub visibility_rays: Option<usize>,
     /// Point pairs per element pair (sampling; default 16 for `solve`,
     /// 4096 for `formfactors`).
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub samples: Option<usize>,
     /// Absolute tolerance of each form factor (polygon-polygon).
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(hide_short_help = true, long, default_value_t = 1e-4)]
     pub quadrature_tolerance: f64,
     /// Hemicube top-face resolution (cells per side; even).
-    #[arg(long, default_value_t = 128)]
+    #[arg(hide_short_help = true, long, default_value_t = 128)]
     pub hemicube_resolution: u32,
     /// Do not turn each hemicube by a random angle about its normal.
-    #[arg(long)]
+    #[arg(hide_short_help = true, long)]
     pub no_hemicube_rotation: bool,
     /// Largest dense matrix (and direct-method factorisation) allowed, in
     /// GiB; for hierarchical, the estimated memory of the elements and
@@ -305,14 +308,19 @@ pub struct KernelArgs {
 }
 
 impl KernelArgs {
-    /// The kernel's settings, `default_samples` point pairs unless given;
-    /// validated.
-    pub fn settings(&self, seed: u64, default_samples: usize) -> Result<MatrixSettings> {
+    /// The settings of `kernel`, `default_samples` point pairs unless
+    /// given; validated.
+    pub fn settings(
+        &self,
+        kernel: Kernel,
+        seed: u64,
+        default_samples: usize,
+    ) -> Result<MatrixSettings> {
         if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
             bail!("--memory-budget must be a positive number of GiB");
         }
         let settings = MatrixSettings {
-            kernel: self.kernel,
+            kernel,
             visibility_rays: self.visibility_rays.unwrap_or(4).max(1),
             samples: self.samples.unwrap_or(default_samples).max(1),
             quadrature_tolerance: self.quadrature_tolerance,
@@ -324,6 +332,60 @@ impl KernelArgs {
         super::checked(settings.validate())?;
         Ok(settings)
     }
+}
+
+/// Each kernel flag (argument id) and the kernels that read it.
+const KERNEL_FLAGS: [(&str, &[Kernel]); 5] = [
+    (
+        "visibility_rays",
+        &[Kernel::PointPolygon, Kernel::PolygonPolygon],
+    ),
+    ("samples", &[Kernel::Sampling]),
+    ("quadrature_tolerance", &[Kernel::PolygonPolygon]),
+    ("hemicube_resolution", &[Kernel::Hemicube]),
+    ("no_hemicube_rotation", &[Kernel::Hemicube]),
+];
+
+/// The flags among `ids` that the command line gave, as `--name`.
+pub fn given(matches: &ArgMatches, ids: &[&str]) -> Vec<String> {
+    ids.iter()
+        .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+        .map(|id| format!("--{}", id.replace('_', "-")))
+        .collect()
+}
+
+/// "--a, --b apply" or "--a applies".
+pub fn flags_apply(flags: &[String]) -> String {
+    let verb = if flags.len() == 1 { "applies" } else { "apply" };
+    format!("{} {verb}", flags.join(", "))
+}
+
+/// The kernel flags given that `kernel` does not read, as one sentence;
+/// `chosen` names a kernel the way the subcommand's flag does (e.g.
+/// `--kernel hemicube` or `--method analytic`), `None` for a kernel the
+/// subcommand does not offer.
+pub fn kernel_inapplicable(
+    matches: &ArgMatches,
+    kernel: Kernel,
+    chosen: impl Fn(Kernel) -> Option<String>,
+) -> Option<String> {
+    let mut sentences = Vec::new();
+    for (id, readers) in KERNEL_FLAGS {
+        if readers.contains(&kernel) {
+            continue;
+        }
+        let flags = given(matches, &[id]);
+        if !flags.is_empty() {
+            let to: Vec<String> = readers.iter().filter_map(|&k| chosen(k)).collect();
+            sentences.push(format!(
+                "{} only to {}, not to {}",
+                flags_apply(&flags),
+                to.join(" and "),
+                chosen(kernel).unwrap_or_default()
+            ));
+        }
+    }
+    (!sentences.is_empty()).then(|| sentences.join("; "))
 }
 
 /// Parses `X,Y,Z` into a finite vector.

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use clap::Args;
+use clap::{ArgMatches, Args};
 
 use nusselt::classic::matrix::FormFactorMatrix;
 use nusselt::classic::surfaces::SurfaceMethod;
@@ -16,7 +16,7 @@ use nusselt::pipeline;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
-use super::args::{Common, KernelArgs, LoadArgs};
+use super::args::{Common, KernelArgs, LoadArgs, kernel_inapplicable};
 use super::{csv_field, init_threads};
 
 #[derive(Args, Debug)]
@@ -39,13 +39,26 @@ pub struct FormFactorArgs {
     common: Common,
 }
 
+/// The kernel flags given that the chosen `--method` does not read, as one
+/// sentence; `None` when every flag given applies.
+pub fn inapplicable(matches: &ArgMatches) -> Option<String> {
+    let method = matches
+        .get_one::<SurfaceMethod>("method")
+        .copied()
+        .unwrap_or(SurfaceMethod::Analytic);
+    kernel_inapplicable(matches, method.kernel(), |k| {
+        SurfaceMethod::of(k).map(|m| format!("--method {}", m.name()))
+    })
+}
+
 /// Runs `nusselt formfactors`.
 pub fn run(args: FormFactorArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
     let options = args.load.options()?;
-    let mut settings = args.kernel.settings(args.common.seed, 4096)?;
-    settings.kernel = args.method.kernel();
+    let settings = args
+        .kernel
+        .settings(args.method.kernel(), args.common.seed, 4096)?;
     let scene = load_scene(&args.scene, &options)?;
     let element_size = match (args.element_size, args.method) {
         (Some(h), _) if h > 0.0 && h.is_finite() => h,

@@ -13,6 +13,7 @@ mod args;
 mod chart;
 mod compare;
 mod formfactors;
+mod help;
 mod probe;
 mod reference;
 mod render;
@@ -76,16 +77,19 @@ pub fn main() -> ExitCode {
             msg.replace('\n', " ")
         );
     }));
-    let matches = Cli::command().get_matches();
+    let matches = help::tailor(Cli::command()).get_matches();
     // A flag the chosen method does not read is a usage error, not ignored.
-    if let Some(("solve", m)) = matches.subcommand() {
-        if let Some(message) = solve::inapplicable(m) {
-            clap::Error::raw(
-                clap::error::ErrorKind::ArgumentConflict,
-                format!("{message}\n"),
-            )
-            .exit();
-        }
+    let inapplicable = match matches.subcommand() {
+        Some(("solve", m)) => solve::inapplicable(m),
+        Some(("formfactors", m)) => formfactors::inapplicable(m),
+        _ => None,
+    };
+    if let Some(message) = inapplicable {
+        clap::Error::raw(
+            clap::error::ErrorKind::ArgumentConflict,
+            format!("{message}\n"),
+        )
+        .exit();
     }
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = std::panic::catch_unwind(|| match cli.command {

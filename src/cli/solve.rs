@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use clap::ArgMatches;
-use clap::parser::ValueSource;
+use nusselt::classic::matrix::Kernel;
 use nusselt::classic::solve::Convergence;
 use nusselt::hierarchical::HierarchicalSettings;
 use nusselt::load::load_scene;
@@ -21,6 +21,7 @@ use nusselt::util::progress::Progress;
 
 use super::args::{
     Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, LoadArgs, SkyArgs, ViewArgs,
+    flags_apply, given, kernel_inapplicable,
 };
 use super::{checked, init_threads};
 
@@ -35,54 +36,6 @@ pub struct SolveArgs {
     /// a classic solver on a uniform mesh with a dense matrix.
     #[arg(long, value_enum, default_value_t = Method::Hierarchical)]
     method: Method,
-    /// Classic methods: largest element edge in metres (default: 1/25 of the
-    /// scene diagonal). Refused with hierarchical, which sizes its elements
-    /// itself.
-    #[arg(long)]
-    element_size: Option<f64>,
-    #[command(flatten)]
-    hierarchical: HierarchicalArgs,
-    /// Hierarchical: the output mesh's vertices: a regular grid, the
-    /// hierarchy's leaf corners, or the leaf corners plus the shadow
-    /// discontinuities as constraint edges, with output adaptivity (the
-    /// default).
-    #[arg(long, value_enum)]
-    mesh: Option<MeshMode>,
-    /// Discontinuity mesh: largest relative difference between a triangle's
-    /// interpolated and point-evaluated centroid value before a vertex is
-    /// added there (0 turns output adaptivity off).
-    #[arg(long, default_value_t = MeshSettings::default().adapt_tol)]
-    adapt_tol: f64,
-    /// Uniform mesh: vertices aimed at (default: as many as the hierarchy
-    /// has leaves).
-    #[arg(long)]
-    uniform_vertices: Option<usize>,
-    /// Draw the output mesh's edges over render.png (render.exr stays
-    /// clean).
-    #[arg(long)]
-    wireframe: bool,
-    /// Display exposure of render.png and the bake's COLOR_0 (default: the
-    /// solution's own, the same for any view; the report records it).
-    #[arg(long)]
-    exposure: Option<f32>,
-    /// Write the bake as one binary glTF, baked.glb, instead of
-    /// baked.gltf + baked.bin.
-    #[arg(long)]
-    glb: bool,
-    /// Also write lightmap atlases RES texels square: lightmap-B.exr
-    /// (radiosity), lightmap-H.exr (irradiance), lightmap.png (display),
-    /// over the input's TEXCOORD_1 or generated charts; the bake gets them
-    /// as TEXCOORD_1 and an emissive texture.
-    #[arg(long, value_name = "RES")]
-    lightmap: Option<u32>,
-    /// Hierarchical: refine only as much as the view (the scene's camera or
-    /// the view flags) needs: link errors count by the importance of their
-    /// receiver, seen directly or reflecting toward what is seen
-    /// \[SAS92\]. The report's `importance` says it was used.
-    #[arg(long)]
-    importance: bool,
-    #[command(flatten)]
-    kernel: KernelArgs,
     /// Gathering: stop when a sweep changes no radiosity by more than this
     /// fraction of the largest. Shooting: stop when the unshot power is below
     /// this fraction of the emitted power. Hierarchical: stop the final
@@ -90,14 +43,76 @@ pub struct SolveArgs {
     /// element by element, by less than this fraction of the total power
     /// Σ B·A (the rounds before it stop at 1e-4 or this, whichever is
     /// looser).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(
+        hide_short_help = true,
+        help_heading = "Accuracy",
+        long,
+        default_value_t = 1e-6
+    )]
     tolerance: f64,
     /// Iteration budget: sweeps (gathering, per round for hierarchical) or
     /// shots (shooting).
-    #[arg(long, default_value_t = 1_000_000)]
+    #[arg(
+        hide_short_help = true,
+        help_heading = "Accuracy",
+        long,
+        default_value_t = 1_000_000
+    )]
     max_iterations: usize,
+    #[command(flatten)]
+    hierarchical: HierarchicalArgs,
+    /// Hierarchical: refine only as much as the view (the scene's camera or
+    /// the view flags) needs: link errors count by the importance of their
+    /// receiver, seen directly or reflecting toward what is seen
+    /// (Smits, Arvo and Salesin 1992). The report's `importance` says it
+    /// was used.
+    #[arg(help_heading = "Hierarchical", long)]
+    importance: bool,
+    /// Classic methods: largest element edge in metres (default: 1/25 of the
+    /// scene diagonal). Refused with hierarchical, which sizes its elements
+    /// itself.
+    #[arg(help_heading = "Classic methods", long)]
+    element_size: Option<f64>,
+    /// Classic methods: the form-factor kernel.
+    #[arg(help_heading = "Kernel", long, value_enum, default_value_t = Kernel::PointPolygon)]
+    kernel: Kernel,
+    #[command(flatten)]
+    kernel_args: KernelArgs,
+    /// Hierarchical: the output mesh's vertices: a regular grid, the
+    /// hierarchy's leaf corners, or the leaf corners plus the shadow
+    /// discontinuities as constraint edges, with output adaptivity (the
+    /// default).
+    #[arg(help_heading = "Output", long, value_enum)]
+    mesh: Option<MeshMode>,
+    /// Discontinuity mesh: largest relative difference between a triangle's
+    /// interpolated and point-evaluated centroid value before a vertex is
+    /// added there (0 turns output adaptivity off).
+    #[arg(hide_short_help = true, help_heading = "Output", long, default_value_t = MeshSettings::default().adapt_tol)]
+    adapt_tol: f64,
+    /// Uniform mesh: vertices aimed at (default: as many as the hierarchy
+    /// has leaves).
+    #[arg(hide_short_help = true, help_heading = "Output", long)]
+    uniform_vertices: Option<usize>,
+    /// Also write lightmap atlases RES texels square: lightmap-B.exr
+    /// (radiosity), lightmap-H.exr (irradiance), lightmap.png (display),
+    /// over the input's TEXCOORD_1 or generated charts; the bake gets them
+    /// as TEXCOORD_1 and an emissive texture.
+    #[arg(help_heading = "Output", long, value_name = "RES")]
+    lightmap: Option<u32>,
+    /// Write the bake as one binary glTF, baked.glb, instead of
+    /// baked.gltf + baked.bin.
+    #[arg(help_heading = "Output", long)]
+    glb: bool,
+    /// Display exposure of render.png and the bake's COLOR_0 (default: the
+    /// solution's own, the same for any view; the report records it).
+    #[arg(help_heading = "Output", long)]
+    exposure: Option<f32>,
+    /// Draw the output mesh's edges over render.png (render.exr stays
+    /// clean).
+    #[arg(help_heading = "Output", long)]
+    wireframe: bool,
     /// Render snapshots after these iterations, e.g. 1,2,24,100.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(help_heading = "Output", long, value_delimiter = ',')]
     snapshots: Vec<usize>,
     #[command(flatten)]
     load: LoadArgs,
@@ -112,11 +127,13 @@ pub struct SolveArgs {
 impl SolveArgs {
     /// The settings of the solve, checked.
     fn settings(&self) -> Result<SolveSettings> {
-        let matrix = self.kernel.settings(self.common.seed, 16)?;
+        let matrix = self
+            .kernel_args
+            .settings(self.kernel, self.common.seed, 16)?;
         let hierarchical = self.hierarchical.settings(HierarchicalExtras {
             seed: self.common.seed,
             rays: self
-                .kernel
+                .kernel_args
                 .visibility_rays
                 .unwrap_or(HierarchicalSettings::default().visibility_rays)
                 .max(1),
@@ -201,8 +218,9 @@ const HIERARCHICAL_ONLY: [&str; 21] = [
     "importance",
 ];
 
-/// The flags given on the command line that the chosen `--method` does
-/// not read, as one sentence; `None` when every flag given applies.
+/// The flags given on the command line that the chosen `--method` (or,
+/// for a classic method, its `--kernel`) does not read, as one sentence;
+/// `None` when every flag given applies.
 pub fn inapplicable(matches: &ArgMatches) -> Option<String> {
     let method = matches
         .get_one::<Method>("method")
@@ -215,19 +233,24 @@ pub fn inapplicable(matches: &ArgMatches) -> Option<String> {
         ),
         Method::Classic(_) => (&HIERARCHICAL_ONLY[..], "--method hierarchical"),
     };
-    let given: Vec<String> = ids
-        .iter()
-        .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
-        .map(|id| format!("--{}", id.replace('_', "-")))
-        .collect();
-    (!given.is_empty()).then(|| {
-        format!(
-            "{} {} only to {applies_to}, not to --method {}",
-            given.join(", "),
-            if given.len() == 1 { "applies" } else { "apply" },
+    let flags = given(matches, ids);
+    if !flags.is_empty() {
+        return Some(format!(
+            "{} only to {applies_to}, not to --method {}",
+            flags_apply(&flags),
             method.name()
-        )
-    })
+        ));
+    }
+    match method {
+        Method::Hierarchical => None,
+        Method::Classic(_) => {
+            let kernel = matches
+                .get_one::<Kernel>("kernel")
+                .copied()
+                .unwrap_or(Kernel::PointPolygon);
+            kernel_inapplicable(matches, kernel, |k| Some(format!("--kernel {}", k.name())))
+        }
+    }
 }
 
 /// Runs `nusselt solve`.

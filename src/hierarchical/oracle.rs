@@ -105,7 +105,7 @@ pub enum Decision {
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Oracle {
-    /// \[HSA91\]: refine while the unoccluded form factor exceeds `ff_eps`.
+    /// Hanrahan, Salzman and Aupperle (1991): refine while the unoccluded form factor exceeds `ff_eps`.
     Ff,
     /// Brightness-weighted (SPLASH-2): ρ_r B_s (V F_err + V_err F + V_err F_err)
     /// against `bf_eps` × the mean emitted exitance.

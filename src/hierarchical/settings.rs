@@ -206,8 +206,8 @@ pub struct HierarchicalSettings {
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Clustering {
-    /// Clusters when the scene has at least [`Clustering::AUTO_PATCHES`]
-    /// patches.
+    /// Clusters when the scene has at least 1,000 patches
+    /// (`Clustering::AUTO_PATCHES`).
     #[default]
     Auto,
     /// Always start from the root cluster's self-link.
