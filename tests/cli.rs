@@ -384,6 +384,33 @@ fn bad_values_are_usage_errors_before_any_work() {
     assert!(!out.exists(), "nothing written");
 }
 
+/// A points file that cannot be read is one error line naming the file
+/// and the line, before any probing; nothing is written.
+#[test]
+fn a_malformed_points_file_names_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("points.csv"),
+        "x,y,z,nx,ny,nz\n0.5,0.5,0,0,0,1\n0.5,0.5,zero,0,0,1\n",
+    )
+    .unwrap();
+    let scene = scene_arg("two-squares.gltf");
+    let args = [
+        "probe",
+        &scene,
+        "--points",
+        "points.csv",
+        "--spp",
+        "8",
+        "-o",
+        "table.csv",
+        "-q",
+    ];
+    let out = nusselt(&args, dir.path());
+    assert_user_error(&out, "points.csv: line 3: column 'z' (\"zero\")");
+    assert!(!dir.path().join("table.csv").exists());
+}
+
 #[test]
 fn an_output_folder_that_cannot_be_one_fails_before_the_scene_is_read() {
     // The scene does not exist: an error about the folder shows that the

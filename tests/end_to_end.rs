@@ -11,7 +11,7 @@ use nusselt::report::Report;
 
 use crate::fixtures::{
     assert_light_adds_up, assert_user_error, bundled_scene, gltf_json, inward_box, nusselt,
-    nusselt_ok, scene_arg,
+    nusselt_ok, scene_arg, scene_path,
 };
 
 fn read_report(dir: &Path) -> Report {
@@ -359,6 +359,48 @@ fn formfactors_command_matches_closed_forms() {
             assert!((row_sum - 1.0).abs() < tol, "{method}: {line}");
         }
     }
+}
+
+/// A surface name with a comma, quotes and a line break comes back whole
+/// from the form-factor CSV: RFC 4180 quoting, read by a standard reader.
+#[test]
+fn formfactors_csv_quotes_surface_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = "lamp, \"warm\"\nwhite";
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&fs::read(scene_path("two-squares.gltf")).unwrap()).unwrap();
+    doc["nodes"][0]["name"] = name.into();
+    fs::write(
+        dir.path().join("named.gltf"),
+        serde_json::to_vec(&doc).unwrap(),
+    )
+    .unwrap();
+    fs::copy(
+        scene_path("two-squares.bin"),
+        dir.path().join("two-squares.bin"),
+    )
+    .unwrap();
+    let out = nusselt_ok(&["formfactors", "named.gltf", "-q"], dir.path());
+    let mut reader = csv::Reader::from_reader(out.stdout.as_slice());
+    assert_eq!(
+        reader.headers().unwrap().iter().collect::<Vec<_>>(),
+        [
+            "from",
+            "to",
+            "form_factor",
+            "reverse",
+            "reciprocity_error",
+            "row_sum"
+        ]
+    );
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let lamp = rows
+        .iter()
+        .find(|r| &r[0] == name && &r[1] == "receiver")
+        .unwrap_or_else(|| panic!("no row from {name:?}: {rows:?}"));
+    let f: f64 = lamp[2].parse().unwrap();
+    assert!((f - 0.199825).abs() < 1e-6, "{rows:?}");
+    assert!(rows.iter().any(|r| &r[0] == "receiver" && &r[1] == name));
 }
 
 /// The bake's exposure is the solution's: three render sizes and a second

@@ -1,6 +1,7 @@
 //! The path-traced reference: closed forms (furnace, Howell C-11, Lambert's
 //! point factor), the noise image as a predictor of the real error,
-//! determinism across thread counts, and the command line.
+//! determinism across thread counts, the command line, and the committed
+//! point tables read and written back unchanged.
 //!
 //! Slower, tighter variants run with NUSSELT_SLOW_TESTS=1.
 
@@ -486,4 +487,24 @@ fn command_line_writes_image_noise_and_sidecar() {
         dir.path(),
     );
     assert_user_error(&one, "--spp");
+}
+
+/// The committed point tables, written before the tables went through the
+/// `csv` crate, read back and encode to the same bytes: the columns and
+/// number formats of `nusselt probe`'s tables did not change.
+#[test]
+fn committed_point_tables_encode_to_the_same_bytes() {
+    use nusselt::lab::points::{encode_table, read_table};
+    for name in [
+        "cornell-box.points.csv",
+        "hard/corridor.points.csv",
+        "hard/gallery.points.csv",
+        "hard/table-gap.points.csv",
+    ] {
+        let path = scene_path(name);
+        let table = read_table(&path).unwrap();
+        assert!(table.len() >= 60, "{name}");
+        let text = String::from_utf8(encode_table(&table).unwrap()).unwrap();
+        assert_eq!(text, std::fs::read_to_string(&path).unwrap(), "{name}");
+    }
 }

@@ -69,15 +69,9 @@ fn compare_points(args: &CompareArgs) -> Result<()> {
     let (score, errors) = points::score(&mesh, &table)?;
     let json = nusselt::output::write_json(&score)?;
     if let Some(dir) = &args.output {
-        let mut csv = String::from("point,test,reference,standard_error,relative,inside\n");
-        for (k, e) in errors.iter().enumerate() {
-            csv.push_str(&format!(
-                "{k},{:.9e},{:.9e},{:.3e},{:.6},{}\n",
-                e.test, e.reference, e.standard_error, e.relative, e.inside
-            ));
-        }
+        let csv = points::encode_errors(&errors)?;
         let mut set = OutputSet::create(dir)?;
-        set.stage("points.csv", csv.as_bytes())?;
+        set.stage("points.csv", &csv)?;
         set.stage("metrics.json", &json)?;
         set.commit()?;
     }

@@ -2,22 +2,42 @@
 //! glTF node each), as CSV on stdout.
 //!
 //! Invariant: the CSV's first three columns are `from,to,form_factor` (the
-//! contract); diagnostics follow.
+//! contract); diagnostics follow. A surface name with a comma, a quote or
+//! a line break is quoted (RFC 4180, by [`nusselt::output::csv`]).
 
+use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::{ArgMatches, Args};
+use serde::Serialize;
 
 use nusselt::classic::matrix::FormFactorMatrix;
 use nusselt::classic::surfaces::SurfaceMethod;
 use nusselt::load::load_scene;
+use nusselt::output::csv;
 use nusselt::pipeline;
 use nusselt::util::progress::Progress;
 use nusselt::visibility::TriangleBvh;
 
 use super::args::{Common, KernelArgs, LoadArgs, kernel_inapplicable};
-use super::{csv_field, init_threads};
+use super::init_threads;
+
+/// A row of the CSV: the surfaces' names, the factors to 9 decimals, the
+/// reciprocity error to 4 significant digits.
+#[derive(Serialize)]
+struct PairRow<'a> {
+    from: &'a str,
+    to: &'a str,
+    #[serde(serialize_with = "csv::fixed::<9, _>")]
+    form_factor: f64,
+    #[serde(serialize_with = "csv::fixed::<9, _>")]
+    reverse: f64,
+    #[serde(serialize_with = "csv::sci::<3, _>")]
+    reciprocity_error: f64,
+    #[serde(serialize_with = "csv::fixed::<9, _>")]
+    row_sum: f64,
+}
 
 #[derive(Args, Debug)]
 pub struct FormFactorArgs {
@@ -70,19 +90,27 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
     let bvh = TriangleBvh::of_scene(&scene);
     let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &progress)?;
     let pairs = nusselt::classic::surfaces::surface_form_factors(&scene, &mesh, &matrix);
-    let mut out = String::from("from,to,form_factor,reverse,reciprocity_error,row_sum\n");
-    for p in &pairs {
-        out.push_str(&format!(
-            "{},{},{:.9},{:.9},{:.3e},{:.9}\n",
-            csv_field(&p.from),
-            csv_field(&p.to),
-            p.form_factor,
-            p.reverse,
-            p.reciprocity_error,
-            p.row_sum
-        ));
-    }
-    print!("{out}");
+    let out = csv::encode(
+        &[
+            "from",
+            "to",
+            "form_factor",
+            "reverse",
+            "reciprocity_error",
+            "row_sum",
+        ],
+        pairs.iter().map(|p| PairRow {
+            from: &p.from,
+            to: &p.to,
+            form_factor: p.form_factor,
+            reverse: p.reverse,
+            reciprocity_error: p.reciprocity_error,
+            row_sum: p.row_sum,
+        }),
+    )?;
+    std::io::stdout()
+        .write_all(&out)
+        .context("writing the form factors to stdout")?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }

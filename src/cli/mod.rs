@@ -132,12 +132,3 @@ fn checked(result: nusselt::Result<()>) -> Result<()> {
         other => Ok(other?),
     }
 }
-
-/// Quotes a CSV field when it needs it.
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}

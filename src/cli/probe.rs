@@ -69,7 +69,7 @@ pub fn run(args: ProbeArgs) -> Result<()> {
     };
     let values = reference::probe_radiosity(&scene, &probe_points, &settings, &progress)
         .with_context(|| format!("probing {}", args.scene.display()))?;
-    nusselt::output::write_atomic(&args.output, &points::encode_table(&values))?;
+    nusselt::output::write_atomic(&args.output, &points::encode_table(&values)?)?;
     if !args.common.quiet {
         println!(
             "{}: {} points at {} paths → {}",

@@ -2,9 +2,10 @@
 //! place where files are created.
 //!
 //! Owns: turning results into bytes ([`exr`], [`png`], [`baked`],
-//! [`write_json`]) and putting those bytes on disk ([`write_atomic`],
-//! [`OutputSet`]). Encoders never touch the file system; readers
-//! ([`exr::read_solution`], [`exr::read_image`]) only read.
+//! [`csv`], [`write_json`]) and putting those bytes on disk
+//! ([`write_atomic`], [`OutputSet`]). Encoders never touch the file system;
+//! readers ([`exr::read_solution`], [`exr::read_image`], [`csv::read`])
+//! only read.
 //!
 //! Invariants:
 //! - Only this module writes files.
@@ -25,6 +26,7 @@
 //! would carry over to the user's outputs; `std::fs` honours the umask.
 
 pub mod baked;
+pub mod csv;
 pub mod exr;
 pub mod png;
 

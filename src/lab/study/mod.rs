@@ -99,7 +99,7 @@ pub fn run_study(
         }
     }
     // The results: the CSV, the charts, the contact sheet.
-    files.push(("results.csv".into(), results::csv(&rows).into_bytes()));
+    files.push(("results.csv".into(), results::encode_results(&rows)?));
     files.extend(results::charts(&rows)?);
     files.push((
         "contact-sheet.png".into(),

@@ -10,10 +10,12 @@
 
 use std::path::{Path, PathBuf};
 
+use serde::Serialize;
+
 use crate::error::Result;
 use crate::lab::chart::{self, Axis, LineChart, Series};
 use crate::lab::study::{StudyResult, StudyRow};
-use crate::output::OutputSet;
+use crate::output::{OutputSet, csv};
 
 /// The file name of the render of the run at `setting` of the line
 /// labelled `label`, under `runs/`.
@@ -34,32 +36,66 @@ fn slug(s: &str) -> String {
         .collect()
 }
 
-/// `results.csv`: a header and one line per row, the label quoted.
-pub(super) fn csv(rows: &[StudyRow]) -> String {
-    let mut out = String::from(
-        "label,method,setting,elements,leaves,links,solve_seconds,render_seconds,converged,rmse,relative_rmse,mean_relative_error,noise_corrected_rmse\n",
-    );
-    for r in rows {
-        out.push_str(&format!(
-            "\"{}\",{},{},{},{},{},{:.6},{:.6},{},{:.6e},{:.6e},{:.6e},{}\n",
-            r.label.replace('"', "\"\""),
-            r.method,
-            r.setting,
-            r.elements,
-            r.leaves,
-            r.links,
-            r.solve_seconds,
-            r.render_seconds,
-            r.converged,
-            r.rmse,
-            r.relative_rmse,
-            r.mean_relative_error,
-            r.noise_corrected_rmse
-                .map(|v| format!("{v:.6e}"))
-                .unwrap_or_default()
-        ));
-    }
-    out
+/// A row of `results.csv`: counts as integers, times to the microsecond,
+/// errors to 7 significant digits (the noise-corrected RMSE empty when
+/// the reference's noise is not known).
+#[derive(Serialize)]
+struct ResultsRow<'a> {
+    label: &'a str,
+    method: &'a str,
+    setting: &'a str,
+    elements: usize,
+    leaves: usize,
+    links: u64,
+    #[serde(serialize_with = "csv::fixed::<6, _>")]
+    solve_seconds: f64,
+    #[serde(serialize_with = "csv::fixed::<6, _>")]
+    render_seconds: f64,
+    converged: bool,
+    #[serde(serialize_with = "csv::sci::<6, _>")]
+    rmse: f64,
+    #[serde(serialize_with = "csv::sci::<6, _>")]
+    relative_rmse: f64,
+    #[serde(serialize_with = "csv::sci::<6, _>")]
+    mean_relative_error: f64,
+    #[serde(serialize_with = "csv::sci_or_empty::<6, _>")]
+    noise_corrected_rmse: Option<f64>,
+}
+
+/// `results.csv`: a header and one line per row.
+pub(super) fn encode_results(rows: &[StudyRow]) -> Result<Vec<u8>> {
+    csv::encode(
+        &[
+            "label",
+            "method",
+            "setting",
+            "elements",
+            "leaves",
+            "links",
+            "solve_seconds",
+            "render_seconds",
+            "converged",
+            "rmse",
+            "relative_rmse",
+            "mean_relative_error",
+            "noise_corrected_rmse",
+        ],
+        rows.iter().map(|r| ResultsRow {
+            label: &r.label,
+            method: &r.method,
+            setting: &r.setting,
+            elements: r.elements,
+            leaves: r.leaves,
+            links: r.links,
+            solve_seconds: r.solve_seconds,
+            render_seconds: r.render_seconds,
+            converged: r.converged,
+            rmse: r.rmse,
+            relative_rmse: r.relative_rmse,
+            mean_relative_error: r.mean_relative_error,
+            noise_corrected_rmse: r.noise_corrected_rmse,
+        }),
+    )
 }
 
 /// The charts of `rows`, each as (`<stem>.svg`, SVG bytes) and
@@ -134,4 +170,60 @@ pub fn write_study(dir: &Path, result: &StudyResult) -> Result<Vec<PathBuf>> {
     let mut written = run_set.commit()?;
     written.extend(set.commit()?);
     Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(label: &str, noise: Option<f64>) -> StudyRow {
+        StudyRow {
+            label: label.into(),
+            method: "jacobi".into(),
+            setting: "0.4".into(),
+            elements: 96,
+            leaves: 96,
+            links: 9216,
+            solve_seconds: 0.0123456789,
+            render_seconds: 1.5,
+            converged: true,
+            rmse: 0.012345678,
+            relative_rmse: f64::NAN,
+            mean_relative_error: 1234.5,
+            noise_corrected_rmse: noise,
+        }
+    }
+
+    #[test]
+    fn rows_keep_their_number_formats() {
+        let text =
+            String::from_utf8(encode_results(&[row("j", None), row("k", Some(0.5))]).unwrap())
+                .unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "label,method,setting,elements,leaves,links,solve_seconds,render_seconds,converged,\
+             rmse,relative_rmse,mean_relative_error,noise_corrected_rmse"
+        );
+        assert_eq!(
+            lines[1],
+            "j,jacobi,0.4,96,96,9216,0.012346,1.500000,true,1.234568e-2,NaN,1.234500e3,"
+        );
+        assert!(lines[2].ends_with(",5.000000e-1"), "{}", lines[2]);
+    }
+
+    /// A label with a comma, quotes and a line break comes back whole from
+    /// a standard CSV reader (it used to be quoted by hand).
+    #[test]
+    fn a_label_with_commas_quotes_and_line_breaks_round_trips() {
+        let label = "gs, \"hemicube\"\nfine";
+        let bytes = encode_results(&[row(label, None), row("plain", None)]).unwrap();
+        let mut reader = ::csv::Reader::from_reader(bytes.as_slice());
+        let records: Vec<::csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+        assert_eq!(records.len(), 2);
+        assert_eq!(&records[0][0], label);
+        assert_eq!(&records[0][1], "jacobi");
+        assert_eq!(&records[1][0], "plain");
+        assert_eq!(records[0].len(), 13);
+    }
 }
