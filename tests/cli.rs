@@ -478,10 +478,187 @@ fn a_flag_the_method_does_not_read_is_a_usage_error() {
             &["--method", "direct", "--sky-rays", "64"][..],
             "--sky-rays",
         ),
+        (
+            &[
+                "--method",
+                "jacobi",
+                "--kernel",
+                "hemicube",
+                "--samples",
+                "8",
+            ][..],
+            "--samples applies only to --kernel sampling, not to --kernel hemicube",
+        ),
+        (
+            &["--method", "gauss-seidel", "--quadrature-tolerance", "1e-3"][..],
+            "--quadrature-tolerance applies only to --kernel polygon-polygon, not to --kernel point-polygon",
+        ),
+        (
+            &[
+                "--method",
+                "jacobi",
+                "--kernel",
+                "sampling",
+                "--visibility-rays",
+                "8",
+            ][..],
+            "--visibility-rays applies only to --kernel point-polygon and --kernel polygon-polygon",
+        ),
     ] {
         let mut args = vec!["solve", scene.as_str(), "-q", "-o", "out"];
         args.extend(extra);
         assert_usage_error(&nusselt(&args, dir.path()), needle);
     }
     assert!(!dir.path().join("out").exists(), "nothing written");
+
+    // formfactors: the kernel is --method's; its knobs apply to their own.
+    for (extra, needle) in [
+        (&["--kernel", "hemicube"][..], "--kernel"),
+        (
+            &["--method", "sampling", "--hemicube-resolution", "64"][..],
+            "--hemicube-resolution applies only to --method hemicube, not to --method sampling",
+        ),
+        (
+            &["--samples", "64"][..],
+            "--samples applies only to --method sampling, not to --method analytic",
+        ),
+    ] {
+        let mut args = vec!["formfactors", scene.as_str(), "-q"];
+        args.extend(extra);
+        let out = nusselt(&args, dir.path());
+        assert_usage_error(&out, needle);
+        assert!(out.stdout.is_empty(), "no form factors computed");
+    }
+}
+
+#[test]
+fn help_has_headings_examples_and_preset_values_and_short_help_hides_expert_knobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = |args: &[&str]| {
+        let out = nusselt(args, dir.path());
+        assert!(out.status.success());
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let long = text(&["solve", "--help"]);
+    let short = text(&["solve", "-h"]);
+    for heading in [
+        "Accuracy:",
+        "Hierarchical:",
+        "Budgets:",
+        "Classic methods:",
+        "Kernel:",
+        "Output:",
+        "View:",
+        "Run:",
+        "Examples:",
+    ] {
+        assert!(long.contains(heading), "--help lacks {heading}");
+    }
+    // Each preset's own value, read from the presets.
+    let default = nusselt::hierarchical::Accuracy::preset(nusselt::hierarchical::Preset::Default);
+    assert!(
+        long.contains(&format!("default {}", default.max_rounds)),
+        "{long}"
+    );
+    assert!(long.contains("--bf-eps") && !short.contains("--bf-eps"));
+    assert!(short.contains("--accuracy") && short.contains("Examples:"));
+    assert!(short.lines().count() * 2 < long.lines().count());
+    // Wrapped: no line runs on (clap wraps at 100 columns off a terminal).
+    let widest = long.lines().map(|l| l.chars().count()).max().unwrap();
+    assert!(widest <= 110, "a help line of {widest} characters");
+    // Per-subcommand wording of a shared flag.
+    assert!(text(&["reference", "--help"]).contains("Independent paths per pixel"));
+    assert!(!text(&["render", "--help"]).contains("Independent paths"));
+}
+
+#[test]
+fn completions_and_man_pages_are_generated_from_the_parser() {
+    let dir = tempfile::tempdir().unwrap();
+    let bash = nusselt(&["completions", "bash"], dir.path());
+    assert!(bash.status.success());
+    let bash = String::from_utf8(bash.stdout).unwrap();
+    assert!(bash.contains("--accuracy") && bash.contains("formfactors"));
+    let man = nusselt(&["manpage"], dir.path());
+    assert!(man.status.success());
+    assert!(
+        String::from_utf8(man.stdout)
+            .unwrap()
+            .starts_with(".ie \\n(.g .ds Aq")
+    );
+    let out = nusselt(&["manpage", "-o", "man"], dir.path());
+    assert!(out.status.success());
+    let solve = std::fs::read_to_string(dir.path().join("man/nusselt-solve.1")).unwrap();
+    assert!(
+        solve.contains("accuracy") && solve.contains(".TH nusselt\\-solve"),
+        "{solve}"
+    );
+    assert_usage_error(&nusselt(&["completions", "tcsh"], dir.path()), "tcsh");
+}
+
+/// Runs nusselt under a pseudo-terminal (`script`), returning what it
+/// drew on the terminal; `None` where `script` is missing.
+fn on_a_terminal(args: &str, dir: &std::path::Path) -> Option<String> {
+    let bin = env!("CARGO_BIN_EXE_nusselt");
+    let out = std::process::Command::new("script")
+        .args(["-qec", &format!("{bin} {args}"), "/dev/null"])
+        .current_dir(dir)
+        .output()
+        .ok()?;
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+#[test]
+fn every_phase_shows_progress_on_a_terminal_and_nothing_otherwise() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_arg("cornell-box.gltf");
+    let args = format!(
+        "solve {scene} -o h --accuracy preview --width 64 --height 64 --spp 1 --lightmap 32"
+    );
+    let Some(drawn) = on_a_terminal(&args, dir.path()) else {
+        println!("skipped: no `script` to run under a terminal");
+        return;
+    };
+    for phase in [
+        "load",
+        "occluders",
+        "shadow lines",
+        "linking",
+        "rounds",
+        "output mesh",
+        "render",
+        "lightmap",
+        "write",
+    ] {
+        assert!(drawn.contains(phase), "no {phase:?} progress in {drawn:?}");
+    }
+    let classic = on_a_terminal(
+        &format!(
+            "solve {scene} -o c --method jacobi --element-size 0.2 --width 64 --height 64 --spp 1"
+        ),
+        dir.path(),
+    )
+    .unwrap();
+    for phase in ["form factors", "jacobi"] {
+        assert!(
+            classic.contains(phase),
+            "no {phase:?} progress in {classic:?}"
+        );
+    }
+    // --quiet on a terminal, and any run whose stderr is not one: nothing.
+    let quiet = on_a_terminal(&format!("{args} --quiet"), dir.path()).unwrap();
+    assert!(quiet.trim().is_empty(), "{quiet:?}");
+    let piped = nusselt(
+        &["solve", &scene, "-o", "p", "--accuracy", "preview"],
+        dir.path(),
+    );
+    assert!(
+        piped.status.success() && piped.stderr.is_empty(),
+        "{:?}",
+        String::from_utf8_lossy(&piped.stderr)
+    );
 }

@@ -61,7 +61,15 @@ fn mesh(s: &Solved, mode: MeshMode) -> (OutputMesh, MeshStats) {
         mode,
         ..MeshSettings::default()
     };
-    build_mesh(&s.scene, &s.bvh, &s.solution, &s.guide, &settings).unwrap()
+    build_mesh(
+        &s.scene,
+        &s.bvh,
+        &s.solution,
+        &s.guide,
+        &settings,
+        &Progress::hidden(),
+    )
+    .unwrap()
 }
 
 fn key(p: Vec3) -> [u32; 3] {
@@ -256,7 +264,15 @@ fn adaptivity_reduces_interpolation_error() {
             adapt_tol: tol,
             ..MeshSettings::default()
         };
-        let (m, stats) = build_mesh(&s.scene, &s.bvh, &s.solution, &s.guide, &settings).unwrap();
+        let (m, stats) = build_mesh(
+            &s.scene,
+            &s.bvh,
+            &s.solution,
+            &s.guide,
+            &settings,
+            &Progress::hidden(),
+        )
+        .unwrap();
         // Independent check at points that are never vertices (three per
         // triangle, off the centroid): the area-weighted mean difference
         // between the interpolation and a point evaluation with other rays.

@@ -552,7 +552,15 @@ fn mesh_modes_at_equal_vertex_count() {
                 uniform_vertices,
                 ..MeshSettings::default()
             };
-            let (mesh, _) = build_mesh(&scene, &bvh, solution, &guide, &settings).unwrap();
+            let (mesh, _) = build_mesh(
+                &scene,
+                &bvh,
+                solution,
+                &guide,
+                &settings,
+                &Progress::hidden(),
+            )
+            .unwrap();
             let (rms, max) = pen.mesh_error(&mesh, pen.floor_patch, SAMPLES);
             eprintln!(
                 "penumbra, {mode:?} mesh: {} vertices, relative RMSE {rms:.4}, max {max:.3}",

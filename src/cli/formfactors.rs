@@ -14,7 +14,6 @@ use serde::Serialize;
 
 use nusselt::classic::matrix::FormFactorMatrix;
 use nusselt::classic::surfaces::SurfaceMethod;
-use nusselt::load::load_scene;
 use nusselt::output::csv;
 use nusselt::pipeline;
 use nusselt::util::progress::Progress;
@@ -79,7 +78,7 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
     let settings = args
         .kernel
         .settings(args.method.kernel(), args.common.seed, 4096)?;
-    let scene = load_scene(&args.scene, &options)?;
+    let scene = super::load(&args.scene, &options, &progress)?;
     let element_size = match (args.element_size, args.method) {
         (Some(h), _) if h > 0.0 && h.is_finite() => h,
         (Some(_), _) => bail!("--element-size must be positive"),

@@ -10,9 +10,12 @@
 use clap::Command;
 use nusselt::hierarchical::{Accuracy, Preset};
 
+/// A knob's value under a preset, as the help shows it.
+type PresetValue = fn(&Accuracy) -> String;
+
 /// The hierarchical knobs whose default comes from `--accuracy`, each with
 /// its value under a preset.
-const PRESET_KNOBS: [(&str, fn(&Accuracy) -> String); 9] = [
+const PRESET_KNOBS: [(&str, PresetValue); 9] = [
     ("ff_eps", |a| a.ff_eps.to_string()),
     ("bf_eps", |a| a.bf_eps.to_string()),
     ("bf_relative_floor", |a| a.bf_relative_floor.to_string()),

@@ -14,6 +14,7 @@ mod chart;
 mod compare;
 mod formfactors;
 mod help;
+mod manual;
 mod probe;
 mod reference;
 mod render;
@@ -56,6 +57,10 @@ enum Command {
     Probe(probe::ProbeArgs),
     /// Sweep methods and settings against a path-traced reference: results.csv, charts, contact sheet.
     Study(study::StudyArgs),
+    /// Print the shell completion script for SHELL (bash, zsh, fish, elvish, powershell).
+    Completions(manual::CompletionsArgs),
+    /// Print the man page (roff), or write one per subcommand with -o.
+    Manpage(manual::ManpageArgs),
 }
 
 /// Runs the command line: parses the arguments, runs the subcommand, and
@@ -77,7 +82,8 @@ pub fn main() -> ExitCode {
             msg.replace('\n', " ")
         );
     }));
-    let matches = help::tailor(Cli::command()).get_matches();
+    let command = help::tailor(Cli::command());
+    let matches = command.clone().get_matches();
     // A flag the chosen method does not read is a usage error, not ignored.
     let inapplicable = match matches.subcommand() {
         Some(("solve", m)) => solve::inapplicable(m),
@@ -92,7 +98,10 @@ pub fn main() -> ExitCode {
         .exit();
     }
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
-    let result = std::panic::catch_unwind(|| match cli.command {
+    on_interrupt();
+    // The command is only read (for completions and man pages), never
+    // left half-changed by a panic: asserting unwind safety is sound.
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match cli.command {
         Command::Solve(args) => solve::run(*args),
         Command::Render(args) => render::run(args),
         Command::Formfactors(args) => formfactors::run(args),
@@ -101,7 +110,9 @@ pub fn main() -> ExitCode {
         Command::Reference(args) => reference::run(args),
         Command::Probe(args) => probe::run(args),
         Command::Study(args) => study::run(args),
-    });
+        Command::Completions(args) => manual::completions(args, command.clone()),
+        Command::Manpage(args) => manual::manpage(args, command.clone()),
+    }));
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(err)) => {
@@ -110,6 +121,32 @@ pub fn main() -> ExitCode {
         }
         Err(_) => ExitCode::from(1),
     }
+}
+
+/// Loads the scene at `path` under a "load" spinner.
+fn load(
+    path: &std::path::Path,
+    options: &nusselt::LoadOptions,
+    progress: &nusselt::util::progress::Progress,
+) -> Result<nusselt::scene::Scene> {
+    let phase = progress.spinner("load");
+    phase.message(path.display().to_string());
+    Ok(nusselt::load::load_scene(path, options)?)
+}
+
+/// On Ctrl-C (or SIGTERM): clear the progress line, say "interrupted",
+/// exit 130. Outputs are staged and renamed only after success, so an
+/// interrupted run leaves earlier results as they were.
+fn on_interrupt() {
+    let _ = ctrlc::set_handler(|| {
+        use std::io::{IsTerminal, Write};
+        let mut err = std::io::stderr();
+        if err.is_terminal() {
+            let _ = write!(err, "\r\x1b[2K");
+        }
+        let _ = writeln!(err, "interrupted");
+        std::process::exit(130);
+    });
 }
 
 /// Sets up the global thread pool (`--threads`).

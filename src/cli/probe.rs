@@ -11,7 +11,6 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use nusselt::lab::points;
-use nusselt::load::load_scene;
 use nusselt::reference::{self, ProbeSettings};
 use nusselt::util::progress::Progress;
 
@@ -60,7 +59,7 @@ pub fn run(args: ProbeArgs) -> Result<()> {
     };
     checked(settings.validate())?;
     nusselt::output::check_target(&args.output)?;
-    let scene = load_scene(&args.scene, &options)?;
+    let scene = super::load(&args.scene, &options, &progress)?;
     let probe_points = match (&args.points, args.random) {
         (Some(path), None) => points::read_points(path)?,
         (None, Some(n)) if n > 0 => reference::random_points(&scene, n, args.common.seed),

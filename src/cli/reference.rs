@@ -9,7 +9,6 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use nusselt::load::load_scene;
 use nusselt::output::exr::{self, ImageInfo, Quantity};
 use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
@@ -57,7 +56,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
     for target in std::iter::once(&args.output).chain(&args.png) {
         nusselt::output::check_target(target)?;
     }
-    let scene = load_scene(&args.scene, &options)?;
+    let scene = super::load(&args.scene, &options, &progress)?;
     let view = View::resolve(scene.cameras.first(), scene.bounds, &args.view.overrides())?;
     let mut result = reference::render_reference(&scene, &view, &settings, &progress)
         .with_context(|| format!("path tracing {}", args.scene.display()))?;

@@ -13,7 +13,6 @@ use clap::ArgMatches;
 use nusselt::classic::matrix::Kernel;
 use nusselt::classic::solve::Convergence;
 use nusselt::hierarchical::HierarchicalSettings;
-use nusselt::load::load_scene;
 use nusselt::meshing::{MeshMode, MeshSettings};
 use nusselt::pipeline::{self, Method, SolveSettings};
 use nusselt::render::RenderSettings;
@@ -269,14 +268,16 @@ pub fn run(args: SolveArgs) -> Result<()> {
         .unwrap_or_else(|| default_folder(&args.scene));
     // Fail before working: the folder must take the files.
     nusselt::output::check_folder(&dir)?;
-    let scene = load_scene(&args.scene, &options)?;
+    let scene = super::load(&args.scene, &options, &progress)?;
     let load_time = start.elapsed().as_secs_f64();
     let mut run = pipeline::solve(&scene, &settings, &progress)
         .with_context(|| format!("solving {}", args.scene.display()))?;
     run.report.scene = args.scene.display().to_string();
     run.report.times.load = load_time;
     run.report.times.total += load_time;
+    let phase = progress.spinner("write");
     pipeline::write_outputs(&dir, &mut run)?;
+    drop(phase);
     for w in &run.report.warnings {
         eprintln!("warning: {w}");
     }

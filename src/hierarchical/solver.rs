@@ -151,22 +151,27 @@ pub fn solve_hierarchical_guided(
     let mut times = HierarchicalTimes::default();
 
     let t = Instant::now();
+    let phase = progress.spinner("linking");
     let first_splits = solver.initial_links();
     times.linking = t.elapsed().as_secs_f64();
     let t = Instant::now();
+    phase.message("following shadow lines and lights");
     let guided_splits = solver.follow_discontinuities(guide);
-    times.refinement += t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
     let lit_splits = solver.follow_lights();
     times.refinement += t.elapsed().as_secs_f64();
+    drop(phase);
 
     let mut rounds = solver.run_rounds(
         first_splits + guided_splits + lit_splits,
         &mut times,
         progress,
     );
+    let phase = match settings.correction_passes {
+        0 => Progress::hidden().phase("", 0),
+        passes => progress.phase("correction", u64::from(passes)),
+    };
     for pass in 0..settings.correction_passes {
+        phase.message(format!("pass {}", pass + 1));
         let t = Instant::now();
         let residual = solver.correct(&rounds.irradiance, settings.correction_rays, pass);
         rounds.correction_passes.push(residual);
@@ -176,7 +181,9 @@ pub fn solve_hierarchical_guided(
         rounds.converged =
             solver.iterate(&mut rounds.irradiance, &mut rounds.history, start, shares);
         times.solve += t.elapsed().as_secs_f64();
+        phase.inc(1);
     }
+    drop(phase);
     solver.finish(rounds, times)
 }
 
@@ -348,7 +355,7 @@ impl<'a> Solver<'a> {
     ) -> Rounds {
         let acc = &self.settings.accuracy;
         let (exitance, _, _) = scene_scales(self.scene);
-        let phase = progress.phase("hierarchical", acc.max_rounds.max(1) as u64);
+        let phase = progress.phase("rounds", acc.max_rounds.max(1) as u64);
         let mut out = Rounds {
             irradiance: vec![DVec3::ZERO; self.hierarchy.len()],
             history: Vec::new(),
@@ -375,6 +382,11 @@ impl<'a> Solver<'a> {
                 out.shares = source_shares(self.scene, &self.hierarchy, &self.links);
             }
             let shares = shared.then_some(&out.shares[..]);
+            phase.message(format!(
+                "round {}: solving {} links",
+                round + 1,
+                self.n_links
+            ));
             out.converged = self.iterate(&mut out.irradiance, &mut out.history, self.start, shares);
             times.solve += t.elapsed().as_secs_f64();
             out.rounds.push(Round {
@@ -398,6 +410,11 @@ impl<'a> Solver<'a> {
             }
             round_start = Instant::now();
             let t = Instant::now();
+            phase.message(format!(
+                "round {}: refining {} links",
+                round + 2,
+                self.n_links
+            ));
             self.update_importance();
             self.thresholds.bf_relative = relative;
             split_links = self.refine();

@@ -72,6 +72,7 @@ use crate::meshing::triangulate::{
 };
 use crate::scene::Scene;
 use crate::util::geometry::{PositionKey, position_key};
+use crate::util::progress::Progress;
 use crate::util::tolerance;
 use crate::visibility::TriangleBvh;
 
@@ -192,6 +193,7 @@ pub fn build_mesh(
     solution: &HierarchicalSolution,
     segments: &[Vec<Segment>],
     settings: &MeshSettings,
+    progress: &Progress,
 ) -> Result<(OutputMesh, MeshStats)> {
     let np = scene.patches.len();
     let mut stats = MeshStats {
@@ -208,6 +210,7 @@ pub fn build_mesh(
     let (exitance, _, _) = scene_scales(scene);
     let mesher = Mesher {
         scene,
+        progress: *progress,
         points,
         settings,
         contacts,
@@ -226,6 +229,7 @@ pub fn build_mesh(
 /// What the steps of [`build_mesh`] after the patch inputs share.
 struct Mesher<'a> {
     scene: &'a Scene,
+    progress: Progress,
     points: PointEvaluator<'a>,
     settings: &'a MeshSettings,
     /// The contact segments by patch (none outside `discontinuity`).
@@ -247,7 +251,7 @@ impl Mesher<'_> {
         stats: &mut MeshStats,
     ) -> Result<(Vec<PatchTriangulation>, ValueCache)> {
         let settings = self.settings;
-        let mut cache = ValueCache::default();
+        let mut cache = ValueCache(HashMap::new(), self.progress);
         let mut added = 0;
         let mut pass = 0;
         let mut exchanges = 0;
@@ -366,9 +370,10 @@ fn key(patch: usize, x: DVec3) -> Key {
 
 /// The radiosity and irradiance at every vertex (and adaptivity's
 /// centroid) evaluated so far, by patch and exact position: a point kept
-/// from one triangulation to the next is evaluated once.
+/// from one triangulation to the next is evaluated once. Each batch of
+/// evaluations shows as an "output mesh" bar of the run's progress.
 #[derive(Default)]
-struct ValueCache(HashMap<Key, PointLight>);
+struct ValueCache(HashMap<Key, PointLight>, Progress);
 
 impl ValueCache {
     /// The radiosity at vertex `x` of patch `patch` (evaluated before).
@@ -402,10 +407,13 @@ impl ValueCache {
             .copied()
             .filter(|&(p, x)| !self.0.contains_key(&key(p, x)) && seen.insert(key(p, x)))
             .collect();
+        let phase = self.1.phase("output mesh", missing.len() as u64);
+        phase.message(format!("{} vertices", self.0.len() + missing.len()));
         let values: Vec<PointLight> = missing
             .par_iter()
             .with_min_len(16)
             .map(|&(p, x)| points.value(p, x, LinkRays::Bright))
+            .inspect(|_| phase.inc(1))
             .collect();
         for (&(p, x), v) in missing.iter().zip(values) {
             self.0.insert(key(p, x), v);

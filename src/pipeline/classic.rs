@@ -42,12 +42,15 @@ pub(super) fn solve(
         .unwrap_or(scene.diagonal() * DEFAULT_ELEMENT_FRACTION);
 
     let t = Instant::now();
+    let phase = progress.spinner("occluders");
     let bvh = TriangleBvh::of_scene(scene);
     report.times.bvh = secs(t);
 
     let t = Instant::now();
+    phase.message("uniform mesh");
     let mesh = UniformMesh::new(scene, element_size);
     report.times.mesh = Some(secs(t));
+    drop(phase);
 
     let t = Instant::now();
     let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;
@@ -74,7 +77,7 @@ pub(super) fn solve(
         area: &area,
     };
     let (mut solution, mut snapshots, snapshot_time) =
-        solve_with_snapshots(scene, settings, method, &mesh, &system, &view)?;
+        solve_with_snapshots(scene, settings, method, &mesh, &system, &view, progress)?;
     for (h, x) in solution.irradiance.iter_mut().zip(&external) {
         *h += *x;
     }
@@ -134,7 +137,9 @@ pub(super) fn solve(
         "height": view.height,
     });
     report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
-    finish(scene, report, view, out, frame, snapshots, start, settings)
+    finish(
+        scene, report, view, out, frame, snapshots, start, settings, progress,
+    )
 }
 
 /// Renders after the requested iterations, with their iteration number.
@@ -149,10 +154,13 @@ fn solve_with_snapshots(
     mesh: &UniformMesh,
     system: &System,
     view: &View,
+    progress: &Progress,
 ) -> Result<(Solution, Snapshots, f64)> {
     let mut snapshots = Vec::new();
     let mut snapshot_time = 0.0;
+    let phase = progress.spinner(method.name());
     let mut observe = |iteration: usize, b: &[DVec3]| {
+        phase.message(format!("iteration {iteration}"));
         if settings.snapshots.contains(&iteration) {
             let t = Instant::now();
             // Only rendered, which takes B: no irradiance kept.

@@ -34,11 +34,14 @@ pub(super) fn solve(
     let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
 
     let t = Instant::now();
+    let phase = progress.spinner("occluders");
     let bvh = TriangleBvh::of_scene(scene);
     report.times.bvh = secs(t);
+    drop(phase);
 
     // The discontinuity mesh's segments also guide the refinement.
     let guide = if settings.mesh.mode == MeshMode::Discontinuity {
+        let _phase = progress.spinner("shadow lines");
         let t = Instant::now();
         let guide = discontinuity_segments(scene, &bvh, &settings.discontinuity)
             .by_patch(scene.patches.len());
@@ -60,7 +63,7 @@ pub(super) fn solve(
         seed: hs.seed,
         ..settings.mesh.clone()
     };
-    let (out, mesh_stats) = build_mesh(scene, &bvh, &solution, &guide, &mesh_settings)?;
+    let (out, mesh_stats) = build_mesh(scene, &bvh, &solution, &guide, &mesh_settings, progress)?;
     report.times.output_mesh = secs(t);
     report.mesh = Some(mesh_stats);
 
@@ -81,7 +84,9 @@ pub(super) fn solve(
     };
     report.settings = settings_json(settings, &hs, &solution, &view);
     report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
-    finish(scene, report, view, out, frame, snapshots, start, settings)
+    finish(
+        scene, report, view, out, frame, snapshots, start, settings, progress,
+    )
 }
 
 /// What the solve did, into the report: importance, phase times, power,

@@ -272,6 +272,7 @@ fn finish(
     snapshots: Vec<(usize, Frame)>,
     start: Instant,
     settings: &SolveSettings,
+    progress: &Progress,
 ) -> Result<SolveRun> {
     let t = Instant::now();
     let overlay = settings
@@ -286,6 +287,7 @@ fn finish(
     let lightmap = match settings.lightmap {
         Some(resolution) => {
             let t = Instant::now();
+            let _phase = progress.spinner("lightmap");
             let lightmap = Lightmap::build(scene, &mesh, resolution)?;
             bake.set_lightmap(
                 lightmap.uv.clone(),

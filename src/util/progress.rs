@@ -1,12 +1,26 @@
-//! Progress reporting for long phases: indicatif bars on stderr.
+//! Progress reporting for every phase of a run: indicatif bars and spinners
+//! on stderr.
 //!
-//! Owns: the only use of `indicatif`. Bars draw only when enabled and stderr
-//! is a terminal; otherwise every call is a no-op, so library code can report
-//! progress unconditionally.
+//! Owns: the only use of `indicatif`. A phase whose work is countable gets
+//! a bar with its count and an ETA ([`Progress::phase`]); one that is not
+//! gets a spinner with the time elapsed ([`Progress::spinner`]); either
+//! can carry a short message (a round number, a vertex count). Nothing
+//! draws unless enabled (not `--quiet`) and stderr is a terminal, so
+//! library code reports progress unconditionally and a redirected run
+//! prints nothing.
+//!
+//! Invariant: at most one phase is alive at a time in the pipeline (each
+//! is finished and cleared when dropped), so bars never overwrite each
+//! other.
+
+use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Hands out one bar per phase.
+/// How often a spinner redraws by itself.
+const TICK: Duration = Duration::from_millis(120);
+
+/// Hands out one bar or spinner per phase.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Progress {
     enabled: bool,
@@ -23,25 +37,40 @@ impl Progress {
         Progress { enabled: false }
     }
 
-    /// A bar for a phase of `total` steps.
+    /// A bar for a phase of `total` steps, with its count and an ETA.
     pub fn phase(&self, name: &str, total: u64) -> Phase {
-        let bar = if self.enabled {
-            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-            if let Ok(style) = ProgressStyle::with_template(
-                "{prefix:>14} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}",
-            ) {
-                bar.set_style(style.progress_chars("=> "));
-            }
-            bar.set_prefix(name.to_string());
-            bar
-        } else {
-            ProgressBar::hidden()
-        };
+        self.start(
+            name,
+            Some(total),
+            "{prefix:>15} [{bar:30}] {pos}/{len} {elapsed_precise} eta {eta} {msg}",
+        )
+    }
+
+    /// A spinner for a phase whose work cannot be counted ahead: its time
+    /// so far and its message.
+    pub fn spinner(&self, name: &str) -> Phase {
+        let phase = self.start(name, None, "{prefix:>15} {spinner} {elapsed_precise} {msg}");
+        phase.bar.enable_steady_tick(TICK);
+        phase
+    }
+
+    fn start(&self, name: &str, total: Option<u64>, template: &str) -> Phase {
+        if !self.enabled {
+            return Phase {
+                bar: ProgressBar::hidden(),
+            };
+        }
+        let bar = ProgressBar::with_draw_target(total, ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        bar.set_prefix(name.to_string());
+        bar.tick();
         Phase { bar }
     }
 }
 
-/// One phase's bar; finished and cleared when dropped.
+/// One phase's bar or spinner; finished and cleared when dropped.
 pub struct Phase {
     bar: ProgressBar,
 }
@@ -55,6 +84,11 @@ impl Phase {
     /// Sets the position.
     pub fn set(&self, pos: u64) {
         self.bar.set_position(pos);
+    }
+
+    /// Shows `message` after the bar (a round, a count).
+    pub fn message(&self, message: impl Into<String>) {
+        self.bar.set_message(message.into());
     }
 }
 
