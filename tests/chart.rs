@@ -1,10 +1,14 @@
 //! Charts (`nusselt::lab::chart`, `nusselt chart`): convergence charts from
-//! synthetic reports, the reusable line chart, log axes, and errors.
+//! synthetic reports, the reusable line chart, log axes, errors, and text
+//! drawn with the bundled font (no font library linked).
 
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
-use nusselt::lab::chart::{Axis, CHART_SIZE, LineChart, Series, draw_line_chart};
+use nusselt::lab::chart::{
+    Axis, CHART_SIZE, LineChart, Series, contact_sheet, draw_line_chart, false_colour_png,
+};
 use nusselt::lab::convergence::{convergence_charts, read_convergence, run_labels};
 use nusselt::report::{HistoryEntry, Report};
 
@@ -375,4 +379,118 @@ fn cli_writes_both_charts_in_both_formats() {
         nusselt(&["chart", "-o", "c3"], dir.path()).status.code(),
         Some(2)
     );
+}
+
+/// The pixels at which two PNGs of the same size differ.
+fn changed_pixels(a: &[u8], b: &[u8]) -> Vec<(u32, u32)> {
+    let read = |png| {
+        image::load_from_memory_with_format(png, image::ImageFormat::Png)
+            .unwrap()
+            .to_rgb8()
+    };
+    let (a, b) = (read(a), read(b));
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.enumerate_pixels()
+        .filter(|&(x, y, p)| p != b.get_pixel(x, y))
+        .map(|(x, y, _)| (x, y))
+        .collect()
+}
+
+/// Pixels that are neither white nor black: the anti-aliased edges that
+/// rasterised glyphs have.
+fn grey_pixels(png: &[u8], rows: std::ops::Range<u32>) -> usize {
+    let img = image::load_from_memory_with_format(png, image::ImageFormat::Png)
+        .unwrap()
+        .to_rgb8();
+    img.enumerate_pixels()
+        .filter(|&(_, y, p)| rows.contains(&y) && p.0.iter().any(|&c| c > 0 && c < 255))
+        .count()
+}
+
+#[test]
+fn text_is_drawn_with_the_bundled_font_and_repeats_byte_for_byte() {
+    // The line chart: the same input twice gives the same bytes; another
+    // title changes the caption's pixels (text is really drawn, and
+    // anti-aliased: a font was rasterised) and nothing below it.
+    let chart = LineChart {
+        title: "residual against iteration".into(),
+        x: Axis::linear("iteration"),
+        y: Axis::log("residual (relative)"),
+        series: vec![Series {
+            label: "jacobi".into(),
+            points: (1..=20).map(|k| (k as f64, 0.5f64.powi(k))).collect(),
+        }],
+    };
+    let first = draw_line_chart(&chart, CHART_SIZE).unwrap();
+    let again = draw_line_chart(&chart, CHART_SIZE).unwrap();
+    assert!(first.png == again.png, "two renders of one chart differ");
+    assert_eq!(first.svg, again.svg);
+    let retitled = LineChart {
+        title: "Gauss-Seidel, 1e-6".into(),
+        ..chart.clone()
+    };
+    let other = draw_line_chart(&retitled, CHART_SIZE).unwrap();
+    let changed = changed_pixels(&first.png, &other.png);
+    assert!(changed.len() > 100, "{} pixels changed", changed.len());
+    // The caption: 16 px of margin and a line of 22 px text.
+    let caption = 0..16 + 30;
+    assert!(
+        changed.iter().all(|(_, y)| caption.contains(y)),
+        "changes outside the caption: {:?}",
+        changed
+            .iter()
+            .filter(|(_, y)| !caption.contains(y))
+            .take(5)
+            .collect::<Vec<_>>()
+    );
+    assert!(grey_pixels(&first.png, caption) > 50);
+
+    // The false-colour map: another scale-bar title changes the strip
+    // below the image only.
+    let (w, h) = (64, 48);
+    let values: Vec<f64> = (0..w * h).map(|k| (k % w) as f64 / w as f64).collect();
+    let percent = |v: &f64| format!("{:.0} %", v * 100.0);
+    let map = |title: &str| false_colour_png(w, h, &values, 1.0, title, &percent).unwrap();
+    assert!(map("relative error") == map("relative error"));
+    let changed = changed_pixels(&map("relative error"), &map("absolute error"));
+    assert!(!changed.is_empty());
+    assert!(changed.iter().all(|&(_, y)| y >= h), "{:?}", &changed[..1]);
+
+    // The contact sheet: another label changes its tile's label strip only.
+    let (w, h) = (96, 64);
+    let tile = |label: &str| (label.to_string(), vec![[40u8, 90, 160]; (w * h) as usize]);
+    let sheet = |label: &str| contact_sheet(&[tile("reference"), tile(label)], w, h, 2).unwrap();
+    assert!(sheet("jacobi") == sheet("jacobi"));
+    let changed = changed_pixels(&sheet("jacobi"), &sheet("shooting"));
+    assert!(!changed.is_empty());
+    assert!(
+        changed.iter().all(|&(x, y)| x > w && y < 4 + 18),
+        "{:?}",
+        &changed[..1]
+    );
+}
+
+#[test]
+fn the_binary_links_no_font_library() {
+    let binary = env!("CARGO_BIN_EXE_nusselt");
+    let out = match Command::new("ldd").arg(binary).output() {
+        Ok(out) => out,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            println!("skipped: no ldd on this machine to list the binary's libraries");
+            return;
+        }
+        Err(e) => panic!("ldd {binary}: {e}"),
+    };
+    let libraries = String::from_utf8_lossy(&out.stdout).to_lowercase();
+    assert!(out.status.success(), "ldd {binary}: {out:?}");
+    assert!(
+        libraries.contains("libc."),
+        "ldd listed no libc: {libraries}"
+    );
+    for library in ["fontconfig", "freetype"] {
+        assert!(
+            !libraries.contains(library),
+            "the binary links {library}:\n{libraries}"
+        );
+    }
 }

@@ -1,5 +1,5 @@
-//! Charts and false-colour maps: the only user of `plotters` and of the
-//! colour-map crate (`colorous`).
+//! Charts and false-colour maps: the only user of `plotters`, of the
+//! colour-map crate (`colorous`) and of the bundled font (`dejavu`).
 //!
 //! Owns: drawing, not data. [`draw_line_chart`] turns any set of labelled
 //! series with axis titles and log flags into SVG text and PNG bytes (the
@@ -15,10 +15,22 @@
 //! - Points that a log axis cannot show (zero, negative) and non-finite
 //!   points are skipped and counted, never drawn and never a panic. A chart
 //!   with no drawable point at all is an error, not an empty picture.
-//! - The same input gives the same bytes (on a machine with the same fonts:
-//!   text is rendered with the system's sans-serif font through fontconfig).
+//! - The same input gives the same bytes on every machine. All text is
+//!   laid out and rasterised in Rust (plotters' `ab_glyph` text) with
+//!   DejaVu Sans, whose bytes the `dejavu` crate compiles into the binary;
+//!   it is registered as plotters' `sans-serif` before anything is drawn,
+//!   and plotters knows no other font: no system font is looked up, and no
+//!   font library (fontconfig, FreeType) is linked. The SVGs name that
+//!   family, so a viewer draws their text in its own sans-serif, at the
+//!   places DejaVu Sans's metrics gave.
+//!
+//! Known weakness: plotters' `ab_glyph` text puts each glyph's ink at its
+//! pen position, leaving out the glyph's left side bearing, so letter
+//! spacing in the PNGs is a pixel uneven at the smallest sizes (the scale
+//! bar's 12 px labels).
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
@@ -30,6 +42,31 @@ use crate::error::{Error, Result};
 const CHART: &str = "the chart";
 /// What false-colour map errors name.
 const MAP: &str = "the false-colour map";
+
+/// The font family every text of a chart names; [`bundled_font`] registers
+/// DejaVu Sans under it.
+const FONT_FAMILY: &str = "sans-serif";
+
+/// Registers DejaVu Sans (the `dejavu` crate's copy of its regular face) as
+/// plotters' [`FONT_FAMILY`], once per process; every drawing function
+/// calls it before it draws. Other styles of the family (bold, italic) fall
+/// back to that face in plotters; another family is an error when drawn,
+/// never a system font. `what` names the picture in the error.
+fn bundled_font(what: &'static str) -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let registered = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(FONT_FAMILY, FontStyle::Normal, dejavu::sans::regular())
+            .is_ok()
+    });
+    if registered {
+        Ok(())
+    } else {
+        Err(Error::encode(
+            what,
+            "the bundled font (DejaVu Sans) could not be read",
+        ))
+    }
+}
 
 /// Default size of a line chart in pixels (SVG user units).
 pub const CHART_SIZE: (u32, u32) = (900, 560);
@@ -136,6 +173,7 @@ pub fn draw_line_chart(chart: &LineChart, size: (u32, u32)) -> Result<ChartImage
     if chart.series.is_empty() {
         return Err(Error::encode(CHART, "there are no series to draw"));
     }
+    bundled_font(CHART)?;
     if size.0 < 200 || size.1 < 150 {
         return Err(Error::encode(
             CHART,
@@ -271,7 +309,7 @@ where
     let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| Error::encode(CHART, e);
     root.fill(&WHITE).map_err(fail)?;
     let mut ctx = ChartBuilder::on(root)
-        .caption(&chart.title, ("sans-serif", 22))
+        .caption(&chart.title, (FONT_FAMILY, 22))
         .margin(16)
         .x_label_area_size(48)
         .y_label_area_size(76)
@@ -292,8 +330,8 @@ where
         .y_desc(chart.y.title.as_str())
         .x_label_formatter(x_label)
         .y_label_formatter(y_label)
-        .label_style(("sans-serif", 14))
-        .axis_desc_style(("sans-serif", 16))
+        .label_style((FONT_FAMILY, 14))
+        .axis_desc_style((FONT_FAMILY, 16))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(fail)?;
@@ -317,7 +355,7 @@ where
         .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
-        .label_font(("sans-serif", 14))
+        .label_font((FONT_FAMILY, 14))
         .draw()
         .map_err(fail)?;
     Ok(())
@@ -368,6 +406,7 @@ pub fn false_colour_png(
             format!("the scale maximum {max} is not a positive number"),
         ));
     }
+    bundled_font(MAP)?;
     let canvas_w = width.max(SCALE_BAR_MIN_WIDTH);
     let canvas_h = height
         .checked_add(SCALE_BAR_HEIGHT)
@@ -416,8 +455,8 @@ fn draw_scale_bar<DB: DrawingBackend>(
         .x_labels(6)
         .x_label_formatter(tick_label)
         .x_desc(title)
-        .label_style(("sans-serif", 12))
-        .axis_desc_style(("sans-serif", 13))
+        .label_style((FONT_FAMILY, 12))
+        .axis_desc_style((FONT_FAMILY, 13))
         .draw()
         .map_err(fail)?;
     let steps = w.max(2) as usize;
@@ -454,6 +493,7 @@ pub fn contact_sheet(
             format!("tile '{label}' is not {width}×{height}"),
         ));
     }
+    bundled_font(SHEET)?;
     let columns = columns.min(tiles.len());
     let rows = tiles.len().div_ceil(columns);
     let gap = 4u32;
@@ -478,7 +518,7 @@ pub fn contact_sheet(
     }
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (canvas_w, canvas_h)).into_drawing_area();
-        let style = ("sans-serif", 11).into_font().color(&BLACK);
+        let style = (FONT_FAMILY, 11).into_font().color(&BLACK);
         // About 6 px per character at this size: cut labels to the tile.
         let fit = (width as usize / 6).max(4);
         for (k, (label, _)) in tiles.iter().enumerate() {
