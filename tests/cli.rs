@@ -589,7 +589,7 @@ fn completions_and_man_pages_are_generated_from_the_parser() {
     assert!(out.status.success());
     let solve = std::fs::read_to_string(dir.path().join("man/nusselt-solve.1")).unwrap();
     assert!(
-        solve.contains("accuracy") && solve.contains(".TH nusselt\\-solve"),
+        solve.contains("accuracy") && solve.contains(".TH nusselt-solve"),
         "{solve}"
     );
     assert_usage_error(&nusselt(&["completions", "tcsh"], dir.path()), "tcsh");
@@ -602,14 +602,12 @@ fn on_a_terminal(args: &str, dir: &std::path::Path) -> Option<String> {
     let out = std::process::Command::new("script")
         .args(["-qec", &format!("{bin} {args}"), "/dev/null"])
         .current_dir(dir)
+        .stdin(std::process::Stdio::null())
         .output()
         .ok()?;
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+    let drawn = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{drawn}");
+    Some(drawn)
 }
 
 #[test]
@@ -617,7 +615,7 @@ fn every_phase_shows_progress_on_a_terminal_and_nothing_otherwise() {
     let dir = tempfile::tempdir().unwrap();
     let scene = scene_arg("cornell-box.gltf");
     let args = format!(
-        "solve {scene} -o h --accuracy preview --width 64 --height 64 --spp 1 --lightmap 32"
+        "solve {scene} -o h --accuracy preview --width 64 --height 64 --spp 1 --lightmap 128"
     );
     let Some(drawn) = on_a_terminal(&args, dir.path()) else {
         println!("skipped: no `script` to run under a terminal");
@@ -661,4 +659,106 @@ fn every_phase_shows_progress_on_a_terminal_and_nothing_otherwise() {
         "{:?}",
         String::from_utf8_lossy(&piped.stderr)
     );
+}
+
+/// Flags only the hierarchical method reads, with a valid value (none for
+/// a switch).
+const HIERARCHICAL_FLAGS: [(&str, Option<&str>); 21] = [
+    ("--accuracy", Some("high")),
+    ("--oracle", Some("ff")),
+    ("--ff-eps", Some("0.1")),
+    ("--bf-eps", Some("0.1")),
+    ("--bf-relative-floor", Some("0.5")),
+    ("--power-eps", Some("0.1")),
+    ("--cluster-eps", Some("0.1")),
+    ("--min-area", Some("0.001")),
+    ("--gradient-tol", Some("0.1")),
+    ("--max-links", Some("100")),
+    ("--max-elements", Some("100")),
+    ("--max-rounds", Some("2")),
+    ("--sky-rays", Some("8")),
+    ("--clustering", Some("on")),
+    ("--time-budget", Some("5")),
+    ("--correction-passes", Some("1")),
+    ("--correction-rays", Some("8")),
+    ("--correction-tolerance", Some("0.1")),
+    ("--adapt-tol", Some("0.1")),
+    ("--uniform-vertices", Some("100")),
+    ("--importance", None),
+];
+
+/// Kernel flags, a valid value, and the `solve --kernel`s that read them.
+const KERNEL_FLAGS: [(&str, Option<&str>, &[&str]); 5] = [
+    (
+        "--visibility-rays",
+        Some("8"),
+        &["point-polygon", "polygon-polygon"],
+    ),
+    ("--samples", Some("8"), &["sampling"]),
+    (
+        "--quadrature-tolerance",
+        Some("0.001"),
+        &["polygon-polygon"],
+    ),
+    ("--hemicube-resolution", Some("64"), &["hemicube"]),
+    ("--no-hemicube-rotation", None, &["hemicube"]),
+];
+
+/// Every flag × method (and kernel) pair it does not apply to is a usage
+/// error naming the flag, before any work; and the table covers every flag
+/// `solve --help` lists under Hierarchical.
+#[test]
+fn table_every_flag_where_it_does_not_apply_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_arg("cornell-box.gltf");
+    let refused = |extra: &[&str], flag: &str| {
+        let mut args = vec!["solve", scene.as_str(), "-q", "-o", "out"];
+        args.extend(extra);
+        let out = nusselt(&args, dir.path());
+        assert_usage_error(&out, flag);
+    };
+    let with = |flag: &'static str, value: Option<&'static str>| -> Vec<&'static str> {
+        std::iter::once(flag).chain(value).collect()
+    };
+    for (flag, value) in HIERARCHICAL_FLAGS {
+        for method in ["direct", "jacobi", "gauss-seidel", "shooting"] {
+            let mut extra = vec!["--method", method];
+            extra.extend(with(flag, value));
+            refused(&extra, flag);
+        }
+    }
+    refused(&["--element-size", "0.1"], "--element-size");
+    refused(&["--kernel", "hemicube"], "--kernel");
+    let kernels = ["point-polygon", "polygon-polygon", "sampling", "hemicube"];
+    for (flag, value, readers) in KERNEL_FLAGS {
+        if !readers.contains(&"point-polygon") && flag != "--visibility-rays" {
+            // A classic-only kernel flag is refused with hierarchical too.
+            refused(&with(flag, value), flag);
+        }
+        for kernel in kernels.iter().filter(|k| !readers.contains(k)) {
+            let mut extra = vec!["--method", "jacobi", "--kernel", kernel];
+            extra.extend(with(flag, value));
+            refused(&extra, flag);
+        }
+    }
+    assert!(!dir.path().join("out").exists(), "nothing written");
+
+    let help = String::from_utf8(nusselt(&["solve", "--help"], dir.path()).stdout).unwrap();
+    // The lines from the heading to the next heading (unindented).
+    let listed: Vec<&str> = help
+        .lines()
+        .skip_while(|l| *l != "Hierarchical:")
+        .skip(1)
+        .take_while(|l| l.is_empty() || l.starts_with(' '))
+        .filter_map(|l| l.trim_start().strip_prefix("--"))
+        .map(|l| l.split([' ', '\t']).next().unwrap())
+        .collect();
+    assert!(!listed.is_empty(), "{help}");
+    for flag in listed {
+        let flag = format!("--{flag}");
+        assert!(
+            HIERARCHICAL_FLAGS.iter().any(|(f, _)| *f == flag),
+            "{flag} is listed under Hierarchical but missing from the table"
+        );
+    }
 }

@@ -17,7 +17,7 @@ pub struct ChartArgs {
     #[arg(required = true)]
     reports: Vec<PathBuf>,
     /// Output folder for residual-iterations.svg/.png and residual-time.svg/.png.
-    #[arg(short, long)]
+    #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
 }
 

@@ -25,7 +25,7 @@ pub struct CompareArgs {
     /// Write error.exr, error.png and metrics.json (point tables:
     /// points.csv and metrics.json) into this folder (without it, only the
     /// metrics are printed).
-    #[arg(short, long)]
+    #[arg(short, long, value_name = "DIR")]
     output: Option<PathBuf>,
     /// Relative error at the top of error.png's colour scale (0.2 = 20 %).
     #[arg(long, default_value_t = nusselt::lab::compare::DEFAULT_MAX_ERROR)]

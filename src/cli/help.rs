@@ -37,6 +37,7 @@ pub fn tailor(cmd: Command) -> Command {
         .mut_subcommand("reference", |c| {
             c.mut_arg("spp", |a| {
                 a.help("Independent paths per pixel (at least 2: the noise image needs two)")
+                    .value_parser(clap::value_parser!(u32).range(2..))
             })
             .after_help(REFERENCE_EXAMPLES)
         })

@@ -31,10 +31,10 @@ pub struct ProbeArgs {
     random: Option<usize>,
     /// The table to write (.csv): the points, their patch, radiosity r,g,b
     /// and its standard error se_r,se_g,se_b.
-    #[arg(short, long, value_parser = csv_path)]
+    #[arg(short, long, value_name = "TABLE.csv", value_parser = csv_path)]
     output: PathBuf,
-    /// Paths per point (at least 2).
-    #[arg(long, default_value_t = 4096)]
+    /// Paths per point (at least 2: the standard error needs two).
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(2..))]
     spp: u32,
     /// Largest number of reflections per path (default: unlimited).
     #[arg(long)]

@@ -23,10 +23,10 @@ pub struct ReferenceArgs {
     scene: PathBuf,
     /// The image to write (.exr); `<stem>.noise.exr` and `<stem>.json` go
     /// beside it.
-    #[arg(short, long, value_parser = exr_path)]
+    #[arg(short, long, value_name = "IMAGE.exr", value_parser = exr_path)]
     output: PathBuf,
     /// Also write a tone-mapped PNG here (auto exposure).
-    #[arg(long, value_parser = png_path)]
+    #[arg(long, value_name = "IMAGE.png", value_parser = png_path)]
     png: Option<PathBuf>,
     /// Largest number of reflections per path (default: unlimited, ended by
     /// Russian roulette; never more than 10,000).

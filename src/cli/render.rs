@@ -26,10 +26,10 @@ pub struct RenderArgs {
     /// A solution.exr written by `nusselt solve`.
     solution: PathBuf,
     /// The image to write (.exr).
-    #[arg(short, long, value_parser = exr_path)]
+    #[arg(short, long, value_name = "IMAGE.exr", value_parser = exr_path)]
     output: PathBuf,
     /// Also write a tone-mapped PNG here.
-    #[arg(long, value_parser = png_path)]
+    #[arg(long, value_name = "IMAGE.png", value_parser = png_path)]
     png: Option<PathBuf>,
     /// Display exposure of the PNG (default: the solve's, from the report
     /// beside the solution, else the solution's own).

@@ -29,7 +29,7 @@ pub struct SolveArgs {
     /// The scene: .gltf or .glb.
     scene: PathBuf,
     /// Output folder (default: out/<scene stem>).
-    #[arg(short, long)]
+    #[arg(short, long, value_name = "DIR")]
     output: Option<PathBuf>,
     /// Solver: hierarchical (adaptive elements and links, the default), or
     /// a classic solver on a uniform mesh with a dense matrix.

@@ -19,7 +19,7 @@ pub struct StudyArgs {
     /// The scene: .gltf or .glb.
     scene: PathBuf,
     /// Output folder (the reference is cached here).
-    #[arg(short, long)]
+    #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
     /// The sweep as JSON (see README); default: every method at a few settings.
     #[arg(long)]
