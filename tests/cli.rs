@@ -46,6 +46,27 @@ fn nan_coordinates_name_the_mesh() {
 }
 
 #[test]
+fn control_characters_in_names_reach_the_terminal_escaped() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut meshes = lit_box();
+    meshes[2].positions[1][0] = f32::NAN;
+    // JSON escapes: the name read holds a real ESC and carriage return.
+    meshes[2].name = "back\\u001b[2J\\rwall";
+    let p = write(dir.path(), "esc.gltf", &gltf_json(&meshes));
+    let out = nusselt(&["solve", &p, "-q"], dir.path());
+    assert_user_error(&out, "back");
+    assert!(
+        !out.stderr.iter().any(|&b| b == 0x1b || b == b'\r'),
+        "raw control bytes"
+    );
+    // The scene path itself: only a regular file is read.
+    assert_user_error(
+        &nusselt(&["solve", "/dev/zero", "-q"], dir.path()),
+        "not a regular file",
+    );
+}
+
+#[test]
 fn out_of_range_index_names_the_mesh() {
     let dir = tempfile::tempdir().unwrap();
     let mut meshes = lit_box();

@@ -1158,20 +1158,45 @@ fn hostile_missing_short_oversized_and_special_buffers() {
     assert!(load(&path).contains("cannot load buffers"));
     // A device instead of a file would be read without end.
     let (_, mut json) = valid_json();
-    json["buffers"][0]["uri"] = json!("file:///dev/zero");
-    let message = scene_error(load_scene_from_slice(
-        &serde_json::to_vec(&json).unwrap(),
-        Some(dir.path()),
-        &LoadOptions::default(),
-    ));
+    let device = dir.path().join("zero");
+    std::os::unix::fs::symlink("/dev/zero", &device).unwrap();
+    let from_slice = |json: &serde_json::Value, base: &Path| {
+        scene_error(load_scene_from_slice(
+            &serde_json::to_vec(json).unwrap(),
+            Some(base),
+            &LoadOptions::default(),
+        ))
+    };
+    // Through a link inside the folder: refused as leading out of it.
+    json["buffers"][0]["uri"] = json!("zero");
+    let message = from_slice(&json, dir.path());
+    assert!(message.contains("through a link"), "{message}");
+    // From a folder where it is a device node itself: not a regular file.
+    json["buffers"][0]["uri"] = json!("zero");
+    let message = from_slice(&json, Path::new("/dev"));
     assert!(message.contains("not a regular file"), "{message}");
+    // Untrusted scenes read nothing outside their folder, and say so
+    // without showing what is there.
+    let secret = dir.path().join("secret.bin");
+    std::fs::write(&secret, b"root:x:0:0:root:/root:/bin/bash\n").unwrap();
+    let inner = dir.path().join("scene");
+    std::fs::create_dir(&inner).unwrap();
+    for (uri, needle) in [
+        ("../secret.bin", "leads out of the scene's folder"),
+        ("a/../../secret.bin", "leads out of the scene's folder"),
+        ("%2E%2E/secret.bin", "leads out of the scene's folder"),
+        (secret.to_str().unwrap(), "absolute path"),
+        ("file:///etc/passwd", "file: URI"),
+        ("file:../secret.bin", "file: URI"),
+    ] {
+        json["buffers"][0]["uri"] = json!(uri);
+        let message = from_slice(&json, &inner);
+        assert!(message.contains(needle), "{uri}: {message}");
+        assert!(!message.contains("root"), "{uri}: {message}");
+    }
     // So would a folder.
     json["buffers"][0]["uri"] = json!(".");
-    let message = scene_error(load_scene_from_slice(
-        &serde_json::to_vec(&json).unwrap(),
-        Some(dir.path()),
-        &LoadOptions::default(),
-    ));
+    let message = from_slice(&json, dir.path());
     assert!(message.contains("not a regular file"), "{message}");
 }
 

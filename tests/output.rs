@@ -164,18 +164,15 @@ fn listing(dir: &Path) -> Vec<String> {
 }
 
 type FlatLayer = Layer<AnyChannels<FlatSamples>>;
+type FlatImage = Image<exr::prelude::Layers<AnyChannels<FlatSamples>>>;
 
-/// Reads every part of an EXR held in memory with the exr crate.
 /// What the image tests' frames hold.
 fn radiance() -> out_exr::ImageInfo<'static> {
     out_exr::ImageInfo::new(out_exr::Quantity::Radiance)
 }
 
 /// Reads a whole file's shared attributes and its layers.
-fn read_image(
-    bytes: &[u8],
-) -> exr::prelude::Image<exr::prelude::Layers<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>>
-{
+fn read_image(bytes: &[u8]) -> FlatImage {
     exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -187,12 +184,8 @@ fn read_image(
 }
 
 /// The `nusselt` header entries of a file (the same in every part).
-fn info_entries(
-    image: &exr::prelude::Image<
-        exr::prelude::Layers<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>,
-    >,
-) -> Vec<String> {
-    let name = exr::prelude::Text::from(out_exr::INFO_ATTRIBUTE);
+fn info_entries(image: &FlatImage) -> Vec<String> {
+    let name = Text::from(out_exr::INFO_ATTRIBUTE);
     // Written among the attributes every part shares, read back per part.
     let all: Vec<_> = image
         .layer_data
@@ -204,24 +197,14 @@ fn info_entries(
         "every part carries the same entries"
     );
     match all[0] {
-        Some(exr::prelude::AttributeValue::TextVector(v)) => {
-            v.iter().map(|t| t.to_string()).collect()
-        }
+        Some(AttributeValue::TextVector(v)) => v.iter().map(|t| t.to_string()).collect(),
         other => panic!("no {} string vector: {other:?}", out_exr::INFO_ATTRIBUTE),
     }
 }
 
+/// Reads every part of an EXR held in memory with the exr crate.
 fn read_layers(bytes: &[u8]) -> Vec<FlatLayer> {
-    exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .unwrap()
-        .layer_data
-        .into_vec()
+    read_image(bytes).layer_data.into_vec()
 }
 
 fn write_layers(layers: Vec<FlatLayer>) -> Vec<u8> {

@@ -111,7 +111,7 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
         .write_all(&out)
         .context("writing the form factors to stdout")?;
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        super::warn(w);
     }
     Ok(())
 }

@@ -116,7 +116,7 @@ pub fn main() -> ExitCode {
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(err)) => {
-            eprintln!("error: {}", format!("{err:#}").replace('\n', " "));
+            eprintln!("error: {}", printable(&format!("{err:#}")));
             ExitCode::from(1)
         }
         Err(_) => ExitCode::from(1),
@@ -147,6 +147,24 @@ fn on_interrupt() {
         let _ = writeln!(err, "interrupted");
         std::process::exit(130);
     });
+}
+
+/// `text` on one line, safe for a terminal: line breaks become spaces and
+/// other control characters (an ESC or `\r` in a node name of an untrusted
+/// scene) are shown escaped, never sent raw.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| match c {
+            '\n' => " ".to_string(),
+            c if c.is_control() => c.escape_unicode().to_string(),
+            c => c.to_string(),
+        })
+        .collect()
+}
+
+/// Prints a warning of the run on stderr, as one line ([`printable`]).
+fn warn(warning: &str) {
+    eprintln!("warning: {}", printable(warning));
 }
 
 /// Sets up the global thread pool (`--threads`).

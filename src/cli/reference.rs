@@ -92,7 +92,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         nusselt::output::write_atomic(path, &bytes)?;
     }
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        super::warn(w);
     }
     if !args.common.quiet {
         let s = &result.stats;

@@ -279,7 +279,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     pipeline::write_outputs(&dir, &mut run)?;
     drop(phase);
     for w in &run.report.warnings {
-        eprintln!("warning: {w}");
+        super::warn(w);
     }
     if !args.common.quiet {
         let c = &run.report.counts;

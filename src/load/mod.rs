@@ -141,6 +141,15 @@ pub fn parse_sky(spec: &str) -> Result<Sky> {
 /// Loads the default scene of a `.gltf` or `.glb` file. External buffers and
 /// images are resolved against the file's folder.
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<Scene> {
+    // A device or a pipe would be read without end, or block: only a
+    // regular file, whose size bounds what is read.
+    match std::fs::metadata(path) {
+        Ok(meta) if !meta.is_file() => {
+            return Err(Error::scene(path, "not a regular file"));
+        }
+        Err(e) => return Err(Error::scene(path, format!("cannot read the file: {e}"))),
+        Ok(_) => {}
+    }
     let bytes = std::fs::read(path)
         .map_err(|e| Error::scene(path, format!("cannot read the file: {e}")))?;
     let base = match path.parent() {
@@ -330,8 +339,11 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
 
 /// Checks buffer and image URIs before `gltf` reads them: percent-escapes
 /// must decode as UTF-8 (`gltf` unwraps the decoding), a data URI must name
-/// a MIME type its role accepts, and an external file (resolved against
-/// `base`) must be a regular file, so that its size bounds what is read.
+/// a MIME type its role accepts, and an external file must be a relative
+/// path that stays inside the scene's folder (no `file:` URI, no absolute
+/// path, no `..` above the folder, no link out of it: an untrusted scene
+/// reads nothing else) and a regular file, so that its size bounds what is
+/// read.
 fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
     const BUFFER_TYPES: &[&str] = &["application/octet-stream", "application/gltf-buffer"];
     const IMAGE_TYPES: &[&str] = &["image/png", "image/jpeg"];
@@ -362,8 +374,12 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
             }
             continue;
         }
-        let path = if let Some(rest) = uri.strip_prefix("file:") {
-            std::path::PathBuf::from(rest.strip_prefix("//").unwrap_or(rest))
+        let path = if uri.starts_with("file:") {
+            return Err(format!(
+                "{what}: '{}' is a file: URI; a scene reads only files beside it, \
+                 named by a relative path",
+                short(uri)
+            ));
         } else if uri.contains(':') {
             continue; // an unsupported scheme: `gltf` reports it
         } else {
@@ -378,6 +394,9 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
             }
         };
         let Some(base) = base else { continue }; // `gltf` refuses it
+        if let Err(why) = inside(base, &path) {
+            return Err(format!("{what}: '{}' {why}", short(uri)));
+        }
         let full = base.join(&path);
         let shown = short(&full.display().to_string());
         match std::fs::metadata(&full) {
@@ -390,6 +409,35 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
                 return Err(format!("{what}: cannot read '{shown}': {e}"));
             }
             Err(_) => {}
+        }
+    }
+    Ok(())
+}
+
+/// Whether `relative` names a file inside the folder `base` (or below it):
+/// not absolute, no `..` that climbs above `base`, and, where the file
+/// exists, not a link that leads out of it. The error says which.
+fn inside(base: &Path, relative: &Path) -> Result<(), &'static str> {
+    use std::path::Component;
+    let mut depth = 0usize;
+    for component in relative.components() {
+        match component {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir => {
+                depth = depth
+                    .checked_sub(1)
+                    .ok_or("leads out of the scene's folder")?;
+            }
+            Component::RootDir | Component::Prefix(_) => {
+                return Err("is an absolute path; a scene reads only files beside it");
+            }
+        }
+    }
+    let full = base.join(relative);
+    if let (Ok(file), Ok(folder)) = (full.canonicalize(), base.canonicalize()) {
+        if !file.starts_with(&folder) {
+            return Err("leads out of the scene's folder through a link");
         }
     }
     Ok(())
