@@ -159,7 +159,7 @@ pub fn fuzz_triangulate(data: &[u8]) -> std::result::Result<(), String> {
             Some(c[0] + u * (c[1] - c[0]) + v * (c[c.len() - 1] - c[0]))
         };
         let input = &mut inputs[tag as usize % np];
-        if (tag as usize / np) % 2 == 0 {
+        if (tag as usize / np).is_multiple_of(2) {
             let Some(p) = point() else { break };
             input.points.push(p);
         } else {

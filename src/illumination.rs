@@ -76,10 +76,10 @@ impl<'a> Illumination<'a> {
         let lights = &self.scene.lights.punctual;
         let mut h = DVec3::ZERO;
         for light in lights {
-            if let Some(i) = light.incident(x, n, self.far) {
-                if self.bvh.visible(from, i.toward) {
-                    h += i.irradiance;
-                }
+            if let Some(i) = light.incident(x, n, self.far)
+                && self.bvh.visible(from, i.toward)
+            {
+                h += i.irradiance;
             }
         }
         h
@@ -146,10 +146,10 @@ impl<'a> Illumination<'a> {
             lo = lo.min(p.max_element());
             hi = hi.max(p.max_element());
             sum += p;
-            if let (Some(sky), Some(&d)) = (sky, directions.get(k)) {
-                if self.bvh.visible(x, x + self.far * d) {
-                    sum += PI * sky.radiance(d);
-                }
+            if let (Some(sky), Some(&d)) = (sky, directions.get(k))
+                && self.bvh.visible(x, x + self.far * d)
+            {
+                sum += PI * sky.radiance(d);
             }
         }
         (sum / ELEMENT_POINTS as f64, (hi - lo).max(0.0))

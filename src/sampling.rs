@@ -33,7 +33,7 @@ pub fn pair_stream(seed: u64, a: u32, b: u32) -> Pcg64Mcg {
 pub fn stratified(n: usize, rng: &mut impl Rng) -> Vec<DVec2> {
     let rows = (1..=n.isqrt().max(1))
         .rev()
-        .find(|a| n % a == 0)
+        .find(|a| n.is_multiple_of(*a))
         .unwrap_or(1);
     let columns = n.div_ceil(rows).max(1);
     (0..n)

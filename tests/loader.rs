@@ -35,7 +35,7 @@ const QUAD_INDICES: [u16; 6] = [0, 1, 2, 0, 2, 3];
 
 impl Gltf {
     pub(crate) fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.views
@@ -209,11 +209,11 @@ impl Gltf {
     pub(crate) fn glb(&self) -> Vec<u8> {
         let mut json =
             serde_json::to_vec(&self.json(json!({"byteLength": self.bin.len()}))).unwrap();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + json.len() + 8 + bin.len();

@@ -87,7 +87,7 @@ impl MatrixSettings {
     /// command-line option.
     pub fn validate(&self) -> Result<()> {
         let r = self.hemicube_resolution;
-        if !(2..=8192).contains(&r) || r % 2 != 0 {
+        if !(2..=8192).contains(&r) || !r.is_multiple_of(2) {
             return Err(Error::Setting(
                 "--hemicube-resolution must be an even number from 2 to 8192".into(),
             ));

@@ -229,10 +229,10 @@ fn groups(scene: &Scene, emitters: &[u32], tol: f64) -> Vec<Vec<usize>> {
         for i in 0..v.len() {
             let (a, b) = (position_key(v[i]), position_key(v[(i + 1) % v.len()]));
             // A neighbour walks the shared edge the other way.
-            if let Some(&other) = edge_owner.get(&(b, a)) {
-                if continue_each_other(scene, p, emitters[other], tol) {
-                    sets.union(k, other);
-                }
+            if let Some(&other) = edge_owner.get(&(b, a))
+                && continue_each_other(scene, p, emitters[other], tol)
+            {
+                sets.union(k, other);
             }
             edge_owner.insert((a, b), k);
         }

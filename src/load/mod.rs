@@ -101,20 +101,19 @@ impl Default for LoadOptions {
 /// finite and not negative).
 pub fn parse_sky(spec: &str) -> Result<Sky> {
     let parts: Vec<&str> = spec.split(',').collect();
-    if parts.len() == 3 {
-        if let Ok(v) = parts
+    if parts.len() == 3
+        && let Ok(v) = parts
             .iter()
             .map(|p| p.trim().parse::<f64>())
             .collect::<std::result::Result<Vec<f64>, _>>()
-        {
-            let l = DVec3::new(v[0], v[1], v[2]);
-            if !(l.is_finite() && l.min_element() >= 0.0) {
-                return Err(Error::Setting(format!(
-                    "--sky {spec}: the radiances must be finite and not negative"
-                )));
-            }
-            return Ok(Sky::Uniform(l));
+    {
+        let l = DVec3::new(v[0], v[1], v[2]);
+        if !(l.is_finite() && l.min_element() >= 0.0) {
+            return Err(Error::Setting(format!(
+                "--sky {spec}: the radiances must be finite and not negative"
+            )));
         }
+        return Ok(Sky::Uniform(l));
     }
     let path = Path::new(spec);
     let frame = crate::output::exr::read_image(path)?;
@@ -435,10 +434,10 @@ fn inside(base: &Path, relative: &Path) -> Result<(), &'static str> {
         }
     }
     let full = base.join(relative);
-    if let (Ok(file), Ok(folder)) = (full.canonicalize(), base.canonicalize()) {
-        if !file.starts_with(&folder) {
-            return Err("leads out of the scene's folder through a link");
-        }
+    if let (Ok(file), Ok(folder)) = (full.canonicalize(), base.canonicalize())
+        && !file.starts_with(&folder)
+    {
+        return Err("leads out of the scene's folder through a link");
     }
     Ok(())
 }

@@ -147,10 +147,10 @@ impl SolveSettings {
                 if !(self.convergence.tolerance > 0.0) {
                     return Err(Error::Setting("--tolerance must be positive".into()));
                 }
-                if let Some(h) = self.element_size {
-                    if !(h > 0.0 && h.is_finite()) {
-                        return Err(Error::Setting(format!("element size {h} must be positive")));
-                    }
+                if let Some(h) = self.element_size
+                    && !(h > 0.0 && h.is_finite())
+                {
+                    return Err(Error::Setting(format!("element size {h} must be positive")));
                 }
                 if self.importance {
                     return Err(Error::Setting(

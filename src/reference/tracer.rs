@@ -137,10 +137,10 @@ impl<'a> Tracer<'a> {
     fn punctual(&self, x: DVec3, n: DVec3) -> DVec3 {
         let mut h = DVec3::ZERO;
         for light in &self.scene.lights.punctual {
-            if let Some(i) = light.incident(x, n, self.far) {
-                if self.bvh.visible(x, i.toward) {
-                    h += i.irradiance;
-                }
+            if let Some(i) = light.incident(x, n, self.far)
+                && self.bvh.visible(x, i.toward)
+            {
+                h += i.irradiance;
             }
         }
         h

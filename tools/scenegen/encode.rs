@@ -62,7 +62,7 @@ pub fn index_mesh(name: &str, triangles: &[[DVec3; 3]]) -> Result<IndexedMesh> {
 }
 
 fn pad_to_4(bytes: &mut Vec<u8>) {
-    while bytes.len() % 4 != 0 {
+    while !bytes.len().is_multiple_of(4) {
         bytes.push(0);
     }
 }

@@ -132,14 +132,14 @@ fn grid_for(rooms: f64) -> (usize, usize) {
 }
 
 fn is_lit(i: usize, j: usize) -> bool {
-    (i + 2 * j) % 3 == 0
+    (i + 2 * j).is_multiple_of(3)
 }
 
 /// File name stem for a target: `office-10k`, `office-1m`, `office-2500`.
 pub fn stem(target: usize) -> String {
-    if target >= 1_000_000 && target % 1_000_000 == 0 {
+    if target >= 1_000_000 && target.is_multiple_of(1_000_000) {
         format!("office-{}m", target / 1_000_000)
-    } else if target >= 1000 && target % 1000 == 0 {
+    } else if target >= 1000 && target.is_multiple_of(1000) {
         format!("office-{}k", target / 1000)
     } else {
         format!("office-{target}")

@@ -251,10 +251,10 @@ fn weld_crossings(set: &mut VertexSet, segments: &[[u32; 2]], frame: &Frame2) {
             if lo1.x > hi2.x || lo2.x > hi1.x || lo1.y > hi2.y || lo2.y > hi1.y {
                 continue;
             }
-            if let Some(x) = crossing(pa, pb, pc, pd) {
-                if [pa, pb, pc, pd].iter().all(|&q| (q - x).length() > eps) {
-                    set.weld(x, frame);
-                }
+            if let Some(x) = crossing(pa, pb, pc, pd)
+                && [pa, pb, pc, pd].iter().all(|&q| (q - x).length() > eps)
+            {
+                set.weld(x, frame);
             }
         }
     }

@@ -150,12 +150,12 @@ pub fn triangulate_patches(
             scene.patches.len()
         )));
     }
-    if let Some(a) = opts.min_angle_deg {
-        if !(a > 0.0 && a <= 34.0) {
-            return Err(Error::Setting(format!(
-                "minimum triangle angle {a}° is outside (0, 34]"
-            )));
-        }
+    if let Some(a) = opts.min_angle_deg
+        && !(a > 0.0 && a <= 34.0)
+    {
+        return Err(Error::Setting(format!(
+            "minimum triangle angle {a}° is outside (0, 34]"
+        )));
     }
     let diagonal = scene.diagonal();
     if !(diagonal > 0.0 && diagonal.is_finite()) {
