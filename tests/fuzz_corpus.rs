@@ -71,7 +71,7 @@ fn seed_corpus_covers_valid_and_broken_inputs() {
         ("lines.gltf", "mesh 'Lines' primitive 0"),
         ("cycle.gltf", "reached twice"),
         ("huge_count.gltf", "exceed"),
-        ("truncated.glb", "not a valid glTF"),
+        ("truncated.glb", "GLB header declares length"),
         ("malformed.gltf", "not a valid glTF"),
         ("no_emitters.glb", "no light in the scene"),
     ] {

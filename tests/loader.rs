@@ -935,6 +935,49 @@ fn declared_counts_beyond_the_data_are_refused_without_allocating() {
     assert!(scene_error(load_json(&json)).contains("without a buffer view"));
 }
 
+/// What the specification forbids is refused, naming what is wrong.
+#[test]
+fn specification_violations_are_refused() {
+    // A sparse index at or above the accessor's count: the index view read
+    // as 32-bit indices holds 0x00010000 and up.
+    let (_, mut json) = valid_json();
+    let view = json["accessors"][2]["bufferView"].clone();
+    json["accessors"][0]["sparse"] = json!({"count": 1,
+        "indices": {"bufferView": view, "componentType": 5125},
+        "values": {"bufferView": json["accessors"][0]["bufferView"].clone()}});
+    let message = scene_error(load_json(&json));
+    assert!(
+        message.contains("sparse indices must increase and stay below"),
+        "{message}"
+    );
+    // A buffer view beyond its buffer's declared byteLength (the data
+    // itself is long enough).
+    let (_, mut json) = valid_json();
+    let shorter = json["buffers"][0]["byteLength"].as_u64().unwrap() - 4;
+    json["buffers"][0]["byteLength"] = json!(shorter);
+    let message = scene_error(load_json(&json));
+    assert!(message.contains("exceeds buffer 0"), "{message}");
+    // A major version other than 2.
+    let (_, mut json) = valid_json();
+    json["asset"]["version"] = json!("3.0");
+    assert!(scene_error(load_json(&json)).contains("asset.version is '3.0'"));
+    // A matrix beside translation/rotation/scale.
+    let (_, mut json) = valid_json();
+    json["nodes"][0]["matrix"] = json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+    json["nodes"][0]["translation"] = json!([0, 1, 0]);
+    assert!(scene_error(load_json(&json)).contains("both a matrix and"));
+    // A GLB whose header length is not the file's.
+    let (g, _) = valid_json();
+    let mut longer = g.glb();
+    longer.extend_from_slice(&[0; 4]);
+    let message = scene_error(load_scene_from_slice(
+        &longer,
+        None,
+        &LoadOptions::default(),
+    ));
+    assert!(message.contains("GLB header declares length"), "{message}");
+}
+
 #[test]
 fn dangling_references_are_errors_not_panics() {
     let (_, mut json) = valid_json();

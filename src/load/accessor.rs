@@ -86,15 +86,34 @@ pub(super) fn check(
         let indices = sparse.indices();
         let index_size = indices.index_type().size();
         let view = indices.view();
+        let stride = view.stride().unwrap_or(index_size);
         check_range(
             &view,
             indices.offset(),
             n,
             index_size,
-            view.stride().unwrap_or(index_size),
+            stride,
             buffers,
             &format!("{what} indices"),
         )?;
+        // In range (just checked): each index must be below the accessor's
+        // count and above the one before it, as the specification says.
+        let data = &buffers[view.buffer().index()][view.offset() + indices.offset()..];
+        let mut previous = None;
+        for k in 0..n {
+            let bytes = &data[k * stride..k * stride + index_size];
+            let i = bytes
+                .iter()
+                .rev()
+                .fold(0usize, |v, &b| (v << 8) | usize::from(b));
+            if i >= count || previous.is_some_and(|p| i <= p) {
+                return Err(format!(
+                    "{what} index {k} is {i}: sparse indices must increase and stay below the \
+                     accessor count {count}"
+                ));
+            }
+            previous = Some(i);
+        }
         let values = sparse.values();
         let view = values.view();
         check_range(
@@ -128,7 +147,11 @@ fn check_range(
         ));
     }
     let view_end = view.offset().checked_add(view.length());
-    let available = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+    // The buffer's declared length bounds its views, whatever was loaded.
+    let available = buffers
+        .get(view.buffer().index())
+        .map_or(0, |b| b.len())
+        .min(view.buffer().length());
     match view_end {
         Some(end) if end <= available => {}
         _ => {

@@ -280,14 +280,33 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
             return Err("truncated GLB header".into());
         };
         let length = u32::from_le_bytes([length[0], length[1], length[2], length[3]]);
-        if (length as usize) < 12 {
-            return Err(format!("GLB header declares length {length} (below 12)"));
+        if length as usize != bytes.len() {
+            return Err(format!(
+                "GLB header declares length {length}, but the file has {} bytes",
+                bytes.len()
+            ));
         }
     }
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| format!("not a valid glTF file: {}", describe(&e)))?;
     let blob = gltf.blob;
     let root = gltf.document.into_json();
+    let major = root.asset.version.split('.').next().unwrap_or("");
+    if major != "2" {
+        return Err(format!(
+            "asset.version is '{}': only glTF 2.x is read",
+            short(&root.asset.version)
+        ));
+    }
+    for (i, node) in root.nodes.iter().enumerate() {
+        let trs = node.translation.is_some() || node.rotation.is_some() || node.scale.is_some();
+        if node.matrix.is_some() && trs {
+            return Err(format!(
+                "node {i} has both a matrix and translation/rotation/scale (the \
+                 specification allows one or the other)"
+            ));
+        }
+    }
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let position = primitive
