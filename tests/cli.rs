@@ -384,6 +384,20 @@ fn bad_values_are_usage_errors_before_any_work() {
         ),
         (vec!["solve", &scene, "-o", o, "--spp", "0"], "--spp"),
         (
+            vec!["solve", &scene, "-o", o, "--max-iterations", "0"],
+            "--max-iterations",
+        ),
+        (
+            vec!["reference", &scene, "-o", "ref.exr", "--spp", "1"],
+            "--spp",
+        ),
+        (
+            vec![
+                "probe", &scene, "--random", "4", "-o", "t.csv", "--spp", "1",
+            ],
+            "--spp",
+        ),
+        (
             vec!["reference", &scene, "-o", "ref.png"],
             "must end in .exr",
         ),

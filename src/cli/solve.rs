@@ -20,7 +20,7 @@ use nusselt::util::progress::Progress;
 
 use super::args::{
     Common, HierarchicalArgs, HierarchicalExtras, KernelArgs, LoadArgs, SkyArgs, ViewArgs,
-    flags_apply, given, kernel_inapplicable,
+    at_least_one, flags_apply, given, kernel_inapplicable,
 };
 use super::{checked, init_threads};
 
@@ -55,7 +55,8 @@ pub struct SolveArgs {
         hide_short_help = true,
         help_heading = "Accuracy",
         long,
-        default_value_t = 1_000_000
+        default_value_t = 1_000_000,
+        value_parser = at_least_one::<usize>
     )]
     max_iterations: usize,
     #[command(flatten)]
