@@ -486,7 +486,14 @@ fn command_line_writes_image_noise_and_sidecar() {
         ],
         dir.path(),
     );
-    assert_user_error(&one, "--spp");
+    // A usage error (exit 2), found by the parser before any work.
+    let stderr = String::from_utf8_lossy(&one.stderr);
+    assert_eq!(one.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("--spp"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("y.exr").exists());
 }
 
 /// The committed point tables, written before the tables went through the
