@@ -3,36 +3,51 @@
 //! into pieces dA_j, one visibility ray per piece, summing the pieces'
 //! point-to-area factors.
 //!
-//! Owns: [`form_factor_area_sampling`], its refinement rule, and its error
+//! Owns: [`form_factor_area_sampling`], its refinement rule and its error
 //! estimate.
 //!
 //! The algorithm. F_ij = (1/A_i) ∫_{A_i} Σ_k F(x → S_k) V(x, y_k) dA_x,
 //! where the S_k partition the source, F(x → S_k) is the exact
-//! point-to-piece factor ([`form_factor_point_polygon`]) and y_k a random
-//! point of S_k, the end of piece k's one ray. The receiver is a set of
-//! triangles (its fan, then midpoint quarters), each taken at its centroid
-//! (the midpoint rule). A triangle's estimate is compared with the sum of
-//! its four quarters' estimates; the triangle where they differ most is
-//! split next (globally adaptive), so receiver points crowd where the
-//! point-to-area contribution changes fastest: along an edge shared with
-//! the source, and along shadow boundaries. The source is cut finer where
-//! visibility is partial: a triangle whose own and quarters' rays were
-//! neither all blocked nor all clear gives its quarters' children a source
-//! of four times as many pieces (the fan triangles, then their midpoint
-//! quarters, up to [`MAX_SOURCE_DEPTH`]); where nothing occludes the whole
-//! source stays one piece and one ray.
+//! point-to-piece factor ([`form_factor_point_polygon`]) and y_k a uniform
+//! random point of S_k, the end of piece k's one ray.
+//! - Each polygon is first clipped to the half-space in front of the
+//!   other's plane (a receiver point behind the source's plane sees none of
+//!   its front), so no cut crosses the integrand.
+//! - The receiver is cut into triangles: its fan, sliver triangles bisected
+//!   across their longest edge, then midpoint quarters. Each triangle is
+//!   read at its centroid (the midpoint rule) and compared with the sum of
+//!   its four quarters' readings; the triangle with the largest error
+//!   estimate is split next (globally adaptive), so receiver points crowd
+//!   where the point-to-area contribution changes fastest: along an edge
+//!   shared with the source, under a nearly touching source, along shadows.
+//! - The source is one piece (one ray) while nothing occludes: 16 probe
+//!   rays between stratified points decide, and a first pass that meets a
+//!   blocked ray after all starts again. An occluded pair starts with the
+//!   source cut into its fan triangles' quarters (a quad: 8 pieces), and a
+//!   triangle whose rays and its quarters' were neither all blocked nor all
+//!   clear gives its quarters' quarters a source of four times as many
+//!   pieces, up to [`MAX_SOURCE_DEPTH`] (a quad: 128).
 //!
-//! The error estimate is the sum over the receiver's leaves of |coarse −
-//! fine|: the disagreement between each split triangle's own estimate and
-//! its quarters'. For a smooth integrand the quarters' midpoint rule is
-//! about four times as accurate as the parent's, so the estimate bounds the
-//! error of the finer value with a margin; it also carries the variance of
-//! the random ray ends. Refinement stops once the estimate is at most
-//! `tolerance` × max(F, [`ABSOLUTE_FLOOR`]) or `max_rays` rays were cast.
+//! The error estimate has two parts. The deterministic one, summed over the
+//! receiver's leaves: |coarse − fine| of the unoccluded sums, and, where the
+//! source is closer to a triangle's centroid than the triangle is wide (the
+//! near field, where five points can miss a steep rise), the triangle's
+//! area times the spread of its five point factors if that is larger. For
+//! a smooth integrand the quarters' midpoint rule is about four times as
+//! accurate as the parent's, so this bounds the finer value's error with a
+//! margin. The random one: the same |coarse − fine| of what occlusion took
+//! away, independent between triangles (the ray ends are), so summed in
+//! quadrature. Refinement stops once their sum is at most `tolerance` ×
+//! max(F, [`ABSOLUTE_FLOOR`]) or `max_rays` were cast. Measured
+//! (`tests/area_sampling.rs`): the true error is within the estimate in
+//! every one of 200 random placements (touching, nearly touching, free),
+//! mostly a third of it or less; with an occluder, within twice it.
 //!
 //! Invariants: the value is finite and in [0, 1] (touching and coplanar
 //! polygons included); the error is finite and non-negative; a given random
 //! stream gives the same result (refinement is serial, in a fixed order).
+//! Cost: rays = readings (one per piece); without occluders one ray and one
+//! point-to-polygon factor per receiver point.
 
 use std::collections::BinaryHeap;
 
