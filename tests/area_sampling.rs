@@ -318,7 +318,7 @@ fn the_stated_error_covers_the_true_error_over_random_placements() {
             f64::from((x - c_s).dot(n_s) > 0.0)
         })
         .value;
-        if !(exact > 1e-4) {
+        if exact <= 1e-4 {
             continue;
         }
         let tol = [DEFAULT_TOLERANCE, 3e-3][cases % 2];
