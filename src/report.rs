@@ -223,6 +223,16 @@ pub struct Report {
     /// Classic: the mean Σ_j F_ij over the rows.
     #[serde(default)]
     pub mean_row_sum: Option<f64>,
+    /// Classic, with a kernel that estimates its error (`sampling`,
+    /// `polygon-polygon`): the mean over the rows of Σ_j (estimated
+    /// absolute error of F_ij), how far a row sum may be off by the
+    /// kernel's own account (`null` otherwise).
+    #[serde(default)]
+    pub mean_row_error: Option<f64>,
+    /// Classic, as `mean_row_error`: the largest estimated error of one
+    /// form factor.
+    #[serde(default)]
+    pub max_form_factor_error: Option<f64>,
     /// The view of the main render.
     pub view: Option<View>,
     /// With `--lightmap`: the atlas (`null` without).

@@ -419,6 +419,41 @@ fn bad_values_are_usage_errors_before_any_work() {
     assert!(!out.exists(), "nothing written");
 }
 
+/// A sampling tolerance that is not a positive, finite number is one
+/// `error:` line naming the flag, before any form factor is computed.
+#[test]
+fn a_bad_sampling_tolerance_is_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene_arg("two-squares.gltf");
+    for bad in ["0", "-0.01", "nan", "inf"] {
+        let flag = format!("--sampling-tolerance={bad}");
+        let out = nusselt(
+            &["formfactors", &scene, "-q", "--method", "sampling", &flag],
+            dir.path(),
+        );
+        assert_user_error(&out, "--sampling-tolerance");
+        assert!(out.stdout.is_empty(), "{bad}: no form factors computed");
+        let o = dir.path().join("out");
+        let out = nusselt(
+            &[
+                "solve",
+                &scene,
+                "-q",
+                "-o",
+                o.to_str().unwrap(),
+                "--method",
+                "jacobi",
+                "--kernel",
+                "sampling",
+                &flag,
+            ],
+            dir.path(),
+        );
+        assert_user_error(&out, "--sampling-tolerance");
+        assert!(!o.exists(), "{bad}: nothing written");
+    }
+}
+
 /// A points file that cannot be read is one error line naming the file
 /// and the line, before any probing; nothing is written.
 #[test]
@@ -491,7 +526,10 @@ fn a_flag_the_method_does_not_read_is_a_usage_error() {
             &["--quadrature-tolerance", "1e-3"][..],
             "--quadrature-tolerance",
         ),
-        (&["--samples", "8"][..], "--samples"),
+        (
+            &["--sampling-tolerance", "0.01"][..],
+            "--sampling-tolerance",
+        ),
         (
             &[
                 "--method",
@@ -519,10 +557,10 @@ fn a_flag_the_method_does_not_read_is_a_usage_error() {
                 "jacobi",
                 "--kernel",
                 "hemicube",
-                "--samples",
-                "8",
+                "--sampling-tolerance",
+                "0.01",
             ][..],
-            "--samples applies only to --kernel sampling, not to --kernel hemicube",
+            "--sampling-tolerance applies only to --kernel sampling, not to --kernel hemicube",
         ),
         (
             &["--method", "gauss-seidel", "--quadrature-tolerance", "1e-3"][..],
@@ -554,8 +592,8 @@ fn a_flag_the_method_does_not_read_is_a_usage_error() {
             "--hemicube-resolution applies only to --method hemicube, not to --method sampling",
         ),
         (
-            &["--samples", "64"][..],
-            "--samples applies only to --method sampling, not to --method analytic",
+            &["--sampling-tolerance", "0.001"][..],
+            "--sampling-tolerance applies only to --method sampling, not to --method analytic",
         ),
     ] {
         let mut args = vec!["formfactors", scene.as_str(), "-q"];
@@ -729,7 +767,7 @@ const KERNEL_FLAGS: [(&str, Option<&str>, &[&str]); 5] = [
         Some("8"),
         &["point-polygon", "polygon-polygon"],
     ),
-    ("--samples", Some("8"), &["sampling"]),
+    ("--sampling-tolerance", Some("0.01"), &["sampling"]),
     (
         "--quadrature-tolerance",
         Some("0.001"),

@@ -79,6 +79,7 @@ fn every_json_output_validates_against_its_schema() {
     };
     let (h, c) = (report(&hierarchical), report(&classic));
     assert!(h["max_row_sum"].is_null() && c["max_row_sum"].as_f64().is_some());
+    assert!(h["mean_row_error"].is_null() && h["max_form_factor_error"].is_null());
     assert!(h["times"]["form_factors"].is_null() && c["times"]["linking"].is_null());
     assert!(h["times"]["lightmap"].as_f64().is_some() && c["times"]["lightmap"].is_null());
     assert!(c["counts"]["clusters"].is_null() && h["counts"]["clusters"].as_u64().is_some());

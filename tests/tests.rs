@@ -4,6 +4,8 @@
 // Shared helpers: slow-test gate, scenes, glTF writers/readers, the binary, thread pools.
 mod fixtures;
 
+// Adaptive area sampling: closed forms to its tolerance, occluders, its error estimate.
+mod area_sampling;
 // The bake keeps the input's nodes, transforms, cameras, materials and texture coordinates.
 mod bake;
 // Resource budgets (links, elements, memory) stop refinement within limits.

@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use crate::classic::uniform::UniformMesh;
 use crate::error::{Error, Result};
+use crate::formfactor::area_sampling::DEFAULT_TOLERANCE;
 use crate::formfactor::{
     form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon_with,
 };
@@ -41,7 +42,9 @@ pub enum Kernel {
     /// Adaptive quadrature over the receiver of the analytic inner integral,
     /// each point weighted by its visible fraction of the source.
     PolygonPolygon,
-    /// Area sampling: `samples` stratified point pairs, one ray each.
+    /// Adaptive area sampling to `sampling_tolerance`: receiver points
+    /// where the integrand needs them, the source cut into pieces with one
+    /// ray each where visibility is partial.
     Sampling,
     /// A hemicube at each receiver's centroid; visibility by its z-buffer.
     Hemicube,
@@ -67,8 +70,10 @@ pub struct MatrixSettings {
     /// Visibility rays per element pair (point-polygon), or per quadrature
     /// point (polygon-polygon).
     pub visibility_rays: usize,
-    /// Point pairs per element pair (sampling).
-    pub samples: usize,
+    /// Relative tolerance of each form factor, with an absolute floor of
+    /// this times [`ABSOLUTE_FLOOR`](crate::formfactor::area_sampling::ABSOLUTE_FLOOR)
+    /// (sampling).
+    pub sampling_tolerance: f64,
     /// Absolute tolerance on each form factor (polygon-polygon).
     pub quadrature_tolerance: f64,
     /// Top-face cells per side (hemicube).
@@ -83,8 +88,8 @@ pub struct MatrixSettings {
 
 impl MatrixSettings {
     /// Checks the kernel's knobs: an even hemicube resolution from 2 to
-    /// 8192 and a positive quadrature tolerance. The error names the
-    /// command-line option.
+    /// 8192, a positive quadrature tolerance and a positive, finite
+    /// sampling tolerance. The error names the command-line option.
     pub fn validate(&self) -> Result<()> {
         let r = self.hemicube_resolution;
         if !(2..=8192).contains(&r) || !r.is_multiple_of(2) {
@@ -97,6 +102,12 @@ impl MatrixSettings {
                 "--quadrature-tolerance must be positive".into(),
             ));
         }
+        if !(self.sampling_tolerance > 0.0 && self.sampling_tolerance.is_finite()) {
+            return Err(Error::Setting(format!(
+                "--sampling-tolerance must be a positive, finite number, not {}",
+                self.sampling_tolerance
+            )));
+        }
         Ok(())
     }
 }
@@ -106,7 +117,7 @@ impl Default for MatrixSettings {
         MatrixSettings {
             kernel: Kernel::PointPolygon,
             visibility_rays: 4,
-            samples: 16,
+            sampling_tolerance: DEFAULT_TOLERANCE,
             quadrature_tolerance: 1e-4,
             hemicube_resolution: 128,
             hemicube_rotation: true,
@@ -119,6 +130,10 @@ impl Default for MatrixSettings {
 /// Integrand evaluations one polygon-polygon matrix entry may spend.
 const QUADRATURE_BUDGET: usize = 2_000;
 
+/// Rays one area-sampling matrix entry may cast (about 2 ms of rays); an
+/// entry that reaches it keeps its larger error estimate.
+const SAMPLING_BUDGET: usize = 200_000;
+
 /// Counters of an assembly.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct MatrixStats {
@@ -130,6 +145,12 @@ pub struct MatrixStats {
     pub max_row_sum: f64,
     /// Mean Σ_j F_ij over the rows.
     pub mean_row_sum: f64,
+    /// The kernel's own error estimates (sampling, polygon-polygon; `None`
+    /// for the kernels that have none): the largest of any entry.
+    pub max_error: Option<f64>,
+    /// The mean over the rows of Σ_j (error of F_ij): how far a row sum may
+    /// be off by the kernel's own account.
+    pub mean_row_error: Option<f64>,
 }
 
 /// Dense row-major n × n form factors; row = receiver.
@@ -216,49 +237,95 @@ impl FormFactorMatrix {
         settings: &MatrixSettings,
         progress: &Progress,
     ) -> Result<(FormFactorMatrix, MatrixStats)> {
+        Self::assemble_inner(mesh, bvh, settings, progress, false).map(|(m, s, _)| (m, s))
+    }
+
+    /// [`Self::assemble`], also returning each entry's error estimate
+    /// (row-major, as the matrix; zeros for kernels with none, see
+    /// [`MatrixStats::max_error`]). The errors take as much memory again,
+    /// not counted in the budget.
+    pub fn assemble_with_errors(
+        mesh: &UniformMesh,
+        bvh: &TriangleBvh,
+        settings: &MatrixSettings,
+        progress: &Progress,
+    ) -> Result<(FormFactorMatrix, MatrixStats, Vec<f32>)> {
+        Self::assemble_inner(mesh, bvh, settings, progress, true)
+    }
+
+    fn assemble_inner(
+        mesh: &UniformMesh,
+        bvh: &TriangleBvh,
+        settings: &MatrixSettings,
+        progress: &Progress,
+        keep_errors: bool,
+    ) -> Result<(FormFactorMatrix, MatrixStats, Vec<f32>)> {
         let n = mesh.elements.len();
         let mut matrix = Self::zeros(n, settings.memory_budget)?;
+        let mut errors = vec![0f32; if keep_errors { n * n } else { 0 }];
         let phase = progress.phase("form factors", n as u64);
-        let ray_count = AtomicU64::new(0);
         let hemicube = (settings.kernel == Kernel::Hemicube)
             .then(|| crate::formfactor::hemicube::Hemicube::new(settings.hemicube_resolution));
         let polygons: Vec<&[DVec3]> = mesh.elements.iter().map(|e| e.corners.as_slice()).collect();
-        matrix
-            .values
-            .par_chunks_mut(n.max(1))
-            .enumerate()
-            .for_each(|(i, row)| {
-                let rays = match &hemicube {
-                    Some(cube) => hemicube_row(mesh, &polygons, cube, settings, i, row),
-                    None => row_by_pairs(mesh, bvh, settings, i, row),
-                };
-                ray_count.fetch_add(rays, Ordering::Relaxed);
-                phase.inc(1);
-            });
+        let row = |i: usize, row: &mut [f32], errors: &mut [f32]| {
+            let rays = match &hemicube {
+                Some(cube) => hemicube_row(mesh, &polygons, cube, settings, i, row),
+                None => row_by_pairs(mesh, bvh, settings, i, row, errors),
+            };
+            phase.inc(1);
+            let max = errors.iter().copied().fold(0f32, f32::max) as f64;
+            let sum = errors.iter().map(|&e| e as f64).sum::<f64>();
+            (rays, max, sum)
+        };
+        let chunk = n.max(1);
+        let per_row: Vec<(u64, f64, f64)> = if keep_errors {
+            matrix
+                .values
+                .par_chunks_mut(chunk)
+                .zip(errors.par_chunks_mut(chunk))
+                .enumerate()
+                .map(|(i, (r, e))| row(i, r, e))
+                .collect()
+        } else {
+            matrix
+                .values
+                .par_chunks_mut(chunk)
+                .enumerate()
+                .map(|(i, r)| row(i, r, &mut vec![0f32; n]))
+                .collect()
+        };
         let sums: Vec<f64> = (0..n)
             .map(|i| matrix.row(i).iter().map(|&f| f as f64).sum())
             .collect();
-        let stats = MatrixStats {
-            nonzero_pairs: matrix.values.iter().filter(|f| **f != 0.0).count() as u64,
-            visibility_rays: ray_count.into_inner(),
-            max_row_sum: sums.iter().copied().fold(0.0, f64::max),
-            mean_row_sum: if n > 0 {
-                sums.iter().sum::<f64>() / n as f64
+        let mean = |v: &mut dyn Iterator<Item = f64>| {
+            if n > 0 {
+                v.sum::<f64>() / n as f64
             } else {
                 0.0
-            },
+            }
         };
-        Ok((matrix, stats))
+        let estimates = matches!(settings.kernel, Kernel::Sampling | Kernel::PolygonPolygon);
+        let stats = MatrixStats {
+            nonzero_pairs: matrix.values.iter().filter(|f| **f != 0.0).count() as u64,
+            visibility_rays: per_row.iter().map(|r| r.0).sum(),
+            max_row_sum: sums.iter().copied().fold(0.0, f64::max),
+            mean_row_sum: mean(&mut sums.iter().copied()),
+            max_error: estimates.then(|| per_row.iter().map(|r| r.1).fold(0.0, f64::max)),
+            mean_row_error: estimates.then(|| mean(&mut per_row.iter().map(|r| r.2))),
+        };
+        Ok((matrix, stats, errors))
     }
 }
 
-/// Fills row `i` pair by pair with a ray-traced kernel; returns rays cast.
+/// Fills row `i` pair by pair with a ray-traced kernel, and `errors` with
+/// each entry's error estimate where the kernel has one; returns rays cast.
 fn row_by_pairs(
     mesh: &UniformMesh,
     bvh: &TriangleBvh,
     settings: &MatrixSettings,
     i: usize,
     row: &mut [f32],
+    errors: &mut [f32],
 ) -> u64 {
     let r = &mesh.elements[i];
     let mut rays_cast = 0u64;
@@ -328,15 +395,21 @@ fn row_by_pairs(
                     },
                 );
                 rays_cast += cast.into_inner();
+                errors[j] = estimate.error as f32;
                 estimate.value
             }
             Kernel::Sampling => {
-                let samples = settings.samples.max(1);
-                rays_cast += samples as u64;
-                form_factor_area_sampling(&r.corners, &s.corners, samples, &mut rng, |x, y| {
-                    bvh.visible(x, y)
-                })
-                .value
+                let estimate = form_factor_area_sampling(
+                    &r.corners,
+                    &s.corners,
+                    settings.sampling_tolerance,
+                    SAMPLING_BUDGET,
+                    &mut rng,
+                    |x, y| bvh.visible(x, y),
+                );
+                rays_cast += estimate.evaluations as u64;
+                errors[j] = estimate.error as f32;
+                estimate.value
             }
             Kernel::Hemicube => unreachable!("hemicube rows are filled whole"),
         };

@@ -18,7 +18,8 @@ pub enum SurfaceMethod {
     /// Adaptive polygon-to-polygon quadrature of the analytic inner
     /// integral, visibility by rays.
     Analytic,
-    /// Area sampling: stratified point pairs, one ray each.
+    /// Adaptive area sampling: receiver points where needed, the source
+    /// cut into pieces with one ray each, to `--sampling-tolerance`.
     Sampling,
     /// A hemicube at each element's centroid, z-buffer visibility.
     Hemicube,
@@ -71,14 +72,20 @@ pub struct SurfacePair {
     /// Σ_T F_ST over every T for this `from` surface (1 when S sits in a
     /// closed enclosure).
     pub row_sum: f64,
+    /// The kernel's estimated absolute error of F_ST: the element
+    /// factors' estimates, area-weighted like the factors and summed (no
+    /// cancellation assumed); `None` for a kernel without estimates.
+    pub error: Option<f64>,
 }
 
 /// Aggregates `matrix` (built on `mesh`) into surface pairs, ordered by
-/// (from, to) surface index.
+/// (from, to) surface index; `errors` (row-major like the matrix) are the
+/// entries' error estimates, when the kernel has them.
 pub fn surface_form_factors(
     scene: &Scene,
     mesh: &UniformMesh,
     matrix: &FormFactorMatrix,
+    errors: Option<&[f32]>,
 ) -> Vec<SurfacePair> {
     let k = scene.surfaces.len();
     let surface_of = |e: usize| scene.patches[mesh.elements[e].patch as usize].surface as usize;
@@ -88,11 +95,19 @@ pub fn surface_form_factors(
     }
     // power[s][t] = Σ_{i∈s} A_i Σ_{j∈t} F_ij
     let mut power = vec![vec![0.0; k]; k];
-    for i in 0..mesh.elements.len() {
+    // The same sums over the entries' errors.
+    let mut slack = vec![vec![0.0; k]; k];
+    let n = mesh.elements.len();
+    for i in 0..n {
         let s = surface_of(i);
         for (j, &f) in matrix.row(i).iter().enumerate() {
             if f != 0.0 {
                 power[s][surface_of(j)] += mesh.elements[i].area * f as f64;
+            }
+        }
+        if let Some(errors) = errors {
+            for (j, &e) in errors[i * n..(i + 1) * n].iter().enumerate() {
+                slack[s][surface_of(j)] += mesh.elements[i].area * e as f64;
             }
         }
     }
@@ -119,6 +134,13 @@ pub fn surface_form_factors(
                 reverse: g,
                 reciprocity_error: (a - b).abs() / a.max(b),
                 row_sum,
+                error: errors.map(|_| {
+                    if area[s] > 0.0 {
+                        slack[s][t] / area[s]
+                    } else {
+                        0.0
+                    }
+                }),
             });
         }
     }

@@ -13,6 +13,7 @@ use clap::{ArgMatches, Args};
 use glam::DVec3;
 
 use nusselt::classic::matrix::{Kernel, MatrixSettings};
+use nusselt::formfactor::area_sampling::DEFAULT_TOLERANCE;
 use nusselt::hierarchical::oracle::Oracle;
 use nusselt::hierarchical::{
     Accuracy, Clustering, DEFAULT_CORRECTION_PASSES, DEFAULT_CORRECTION_RAYS,
@@ -287,10 +288,11 @@ pub struct KernelArgs {
     /// (hierarchical; default 32).
     #[arg(hide_short_help = true, long)]
     pub visibility_rays: Option<usize>,
-    /// Point pairs per element pair (sampling; default 16 for `solve`,
-    /// 4096 for `formfactors`).
-    #[arg(hide_short_help = true, long)]
-    pub samples: Option<usize>,
+    /// Relative tolerance of each form factor (sampling): receiver points
+    /// and source pieces are added until the estimated error is below it,
+    /// or below it times 0.001 absolutely for smaller factors.
+    #[arg(hide_short_help = true, long, default_value_t = DEFAULT_TOLERANCE)]
+    pub sampling_tolerance: f64,
     /// Absolute tolerance of each form factor (polygon-polygon).
     #[arg(hide_short_help = true, long, default_value_t = 1e-4)]
     pub quadrature_tolerance: f64,
@@ -308,21 +310,15 @@ pub struct KernelArgs {
 }
 
 impl KernelArgs {
-    /// The settings of `kernel`, `default_samples` point pairs unless
-    /// given; validated.
-    pub fn settings(
-        &self,
-        kernel: Kernel,
-        seed: u64,
-        default_samples: usize,
-    ) -> Result<MatrixSettings> {
+    /// The settings of `kernel`; validated.
+    pub fn settings(&self, kernel: Kernel, seed: u64) -> Result<MatrixSettings> {
         if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
             bail!("--memory-budget must be a positive number of GiB");
         }
         let settings = MatrixSettings {
             kernel,
             visibility_rays: self.visibility_rays.unwrap_or(4).max(1),
-            samples: self.samples.unwrap_or(default_samples).max(1),
+            sampling_tolerance: self.sampling_tolerance,
             quadrature_tolerance: self.quadrature_tolerance,
             hemicube_resolution: self.hemicube_resolution,
             hemicube_rotation: !self.no_hemicube_rotation,
@@ -340,7 +336,7 @@ const KERNEL_FLAGS: [(&str, &[Kernel]); 5] = [
         "visibility_rays",
         &[Kernel::PointPolygon, Kernel::PolygonPolygon],
     ),
-    ("samples", &[Kernel::Sampling]),
+    ("sampling_tolerance", &[Kernel::Sampling]),
     ("quadrature_tolerance", &[Kernel::PolygonPolygon]),
     ("hemicube_resolution", &[Kernel::Hemicube]),
     ("no_hemicube_rotation", &[Kernel::Hemicube]),

@@ -2,7 +2,7 @@
 //! glTF node each), as CSV on stdout.
 //!
 //! Invariant: the CSV's first three columns are `from,to,form_factor` (the
-//! contract); diagnostics follow. A surface name with a comma, a quote or
+//! contract); diagnostics follow, the kernel's error estimate last. A surface name with a comma, a quote or
 //! a line break is quoted (RFC 4180, by [`nusselt::output::csv`]).
 
 use std::io::Write;
@@ -23,7 +23,8 @@ use super::args::{Common, KernelArgs, LoadArgs, kernel_inapplicable};
 use super::init_threads;
 
 /// A row of the CSV: the surfaces' names, the factors to 9 decimals, the
-/// reciprocity error to 4 significant digits.
+/// reciprocity error to 4 significant digits, the kernel's estimated
+/// absolute error of the factor (empty for the hemicube, which has none).
 #[derive(Serialize)]
 struct PairRow<'a> {
     from: &'a str,
@@ -36,6 +37,8 @@ struct PairRow<'a> {
     reciprocity_error: f64,
     #[serde(serialize_with = "csv::fixed::<9, _>")]
     row_sum: f64,
+    #[serde(serialize_with = "csv::sci_or_empty::<3, _>")]
+    error: Option<f64>,
 }
 
 #[derive(Args, Debug)]
@@ -77,7 +80,7 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
     let options = args.load.options()?;
     let settings = args
         .kernel
-        .settings(args.method.kernel(), args.common.seed, 4096)?;
+        .settings(args.method.kernel(), args.common.seed)?;
     let scene = super::load(&args.scene, &options, &progress)?;
     let element_size = match (args.element_size, args.method) {
         (Some(h), _) if h > 0.0 && h.is_finite() => h,
@@ -87,8 +90,10 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
     };
     let mesh = nusselt::classic::uniform::UniformMesh::new(&scene, element_size);
     let bvh = TriangleBvh::of_scene(&scene);
-    let (matrix, _) = FormFactorMatrix::assemble(&mesh, &bvh, &settings, &progress)?;
-    let pairs = nusselt::classic::surfaces::surface_form_factors(&scene, &mesh, &matrix);
+    let (matrix, stats, errors) =
+        FormFactorMatrix::assemble_with_errors(&mesh, &bvh, &settings, &progress)?;
+    let errors = stats.max_error.is_some().then_some(errors.as_slice());
+    let pairs = nusselt::classic::surfaces::surface_form_factors(&scene, &mesh, &matrix, errors);
     let out = csv::encode(
         &[
             "from",
@@ -97,6 +102,7 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
             "reverse",
             "reciprocity_error",
             "row_sum",
+            "error",
         ],
         pairs.iter().map(|p| PairRow {
             from: &p.from,
@@ -105,6 +111,7 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
             reverse: p.reverse,
             reciprocity_error: p.reciprocity_error,
             row_sum: p.row_sum,
+            error: p.error,
         }),
     )?;
     std::io::stdout()

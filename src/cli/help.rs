@@ -1,7 +1,7 @@
 //! Help text that depends on the subcommand: the wording of a shared flag
 //! where it means something different (`--spp`, `--visibility-rays`,
-//! `--samples`), each accuracy knob's value under every preset, and the
-//! examples shown after the options.
+//! `--sampling-tolerance`), each accuracy knob's value under every preset,
+//! and the examples shown after the options.
 //!
 //! Invariant: the preset values shown are read from
 //! [`Accuracy::preset`], never written out by hand, so the help cannot
@@ -45,8 +45,11 @@ pub fn tailor(cmd: Command) -> Command {
             c.mut_arg("visibility_rays", |a| {
                 a.help("analytic: visibility rays per quadrature point [default: 4]")
             })
-            .mut_arg("samples", |a| {
-                a.help("sampling: point pairs per element pair, one ray each [default: 4096]")
+            .mut_arg("sampling_tolerance", |a| {
+                a.help(
+                    "sampling: relative tolerance of each form factor (absolute below a factor \
+                     of 0.001); the CSV's error column is the estimate it was met by",
+                )
             })
             .after_help(FORMFACTORS_EXAMPLES)
         })
@@ -74,8 +77,11 @@ fn solve(mut cmd: Command) -> Command {
                  (point-polygon) or per quadrature point (polygon-polygon) [default: 4]",
             )
         })
-        .mut_arg("samples", |a| {
-            a.help("sampling kernel: point pairs per element pair, one ray each [default: 16]")
+        .mut_arg("sampling_tolerance", |a| {
+            a.help(
+                "sampling kernel: relative tolerance of each element-to-element form factor \
+                 (absolute below a factor of 0.001)",
+            )
         })
         .after_help(SOLVE_EXAMPLES)
 }

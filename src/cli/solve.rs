@@ -127,9 +127,7 @@ pub struct SolveArgs {
 impl SolveArgs {
     /// The settings of the solve, checked.
     fn settings(&self) -> Result<SolveSettings> {
-        let matrix = self
-            .kernel_args
-            .settings(self.kernel, self.common.seed, 16)?;
+        let matrix = self.kernel_args.settings(self.kernel, self.common.seed)?;
         let hierarchical = self.hierarchical.settings(HierarchicalExtras {
             seed: self.common.seed,
             rays: self
@@ -187,7 +185,7 @@ impl SolveArgs {
 const CLASSIC_ONLY: [&str; 6] = [
     "element_size",
     "kernel",
-    "samples",
+    "sampling_tolerance",
     "quadrature_tolerance",
     "hemicube_resolution",
     "no_hemicube_rotation",

@@ -5,7 +5,7 @@
 //! (Lambert's contour integral, [`point_polygon`]), polygon → polygon
 //! (adaptive quadrature of the exact inner integral, [`polygon_polygon`]),
 //! aligned rectangles in closed form ([`rectangles`]),
-//! area sampling ([`area_sampling`]), the hemicube ([`hemicube`]), and
+//! adaptive area sampling ([`area_sampling`]), the hemicube ([`hemicube`]), and
 //! Howell's closed forms as yardsticks ([`closed_form`]). Argument order
 //! is always (receiver, source), matching F_ij: "i gathers from j".
 //!
@@ -34,9 +34,9 @@ pub use polygon_polygon::{
 pub struct Estimate {
     /// The form factor, in [0, 1].
     pub value: f64,
-    /// Estimated absolute error (quadrature: sum of the local differences
-    /// between successive rules; sampling: one standard error).
+    /// Estimated absolute error (quadrature and area sampling: the sum of
+    /// the local differences between successive subdivisions).
     pub error: f64,
-    /// Integrand evaluations (quadrature points or sample pairs).
+    /// Integrand evaluations (quadrature points; area sampling: rays).
     pub evaluations: usize,
 }

@@ -126,6 +126,8 @@ pub(super) fn solve(
     };
     report.max_row_sum = Some(stats.max_row_sum);
     report.mean_row_sum = Some(stats.mean_row_sum);
+    report.mean_row_error = stats.mean_row_error;
+    report.max_form_factor_error = stats.max_error;
     report.settings = json!({
         "method": method,
         "element_size": element_size,
