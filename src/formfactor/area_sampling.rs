@@ -383,7 +383,7 @@ impl<V: Fn(DVec3, DVec3) -> bool> Sampler<'_, V> {
             }
             // The running sums drift: recompute them now and then.
             steps += 1;
-            if steps % 256 == 0 {
+            if steps.is_multiple_of(256) {
                 totals = Totals::of(&heap);
             }
         }
