@@ -14,35 +14,10 @@ use nusselt::sampling::stream;
 use rand::Rng;
 use std::f64::consts::PI;
 
+use crate::closed_forms::{disc, rect_xy};
+
 /// The tight tolerance the closed forms are also met at.
 const TIGHT: f64 = 1e-3;
-
-fn rect(a: f64, b: f64, z: f64, up: bool) -> Vec<DVec3> {
-    let mut v = vec![
-        DVec3::new(0.0, 0.0, z),
-        DVec3::new(a, 0.0, z),
-        DVec3::new(a, b, z),
-        DVec3::new(0.0, b, z),
-    ];
-    if !up {
-        v.reverse();
-    }
-    v
-}
-
-/// A regular m-gon of the area of the disc of radius r, centred on the z
-/// axis in the plane z.
-fn disc(r: f64, z: f64, m: usize, up: bool) -> Vec<DVec3> {
-    let t = 2.0 * PI / m as f64;
-    let rr = r * (t / t.sin()).sqrt();
-    let mut v: Vec<DVec3> = (0..m)
-        .map(|k| DVec3::new(rr * (k as f64 * t).cos(), rr * (k as f64 * t).sin(), z))
-        .collect();
-    if !up {
-        v.reverse();
-    }
-    v
-}
 
 /// Floor (width w along −x) and wall (height h) sharing the edge of length
 /// l along y: Howell C-14 from the floor to the wall.
@@ -101,7 +76,12 @@ fn parallel_squares_c11_at_five_aspect_ratios() {
         .into_iter()
         .enumerate()
         {
-            let f = sample(&rect(a, b, 0.0, true), &rect(a, b, c, false), tol, k as u64);
+            let f = sample(
+                &rect_xy(a, b, 0.0, true),
+                &rect_xy(a, b, c, false),
+                tol,
+                k as u64,
+            );
             check(&format!("C-11 {a}×{b} at {c}"), f, c11(a, b, c), tol);
         }
     }
@@ -173,7 +153,7 @@ fn crosses(x: DVec3, y: DVec3, z: f64, box_: [f64; 4]) -> bool {
 /// shadow, a rectangle; integrated by quadrature to 10⁻⁸).
 #[test]
 fn an_occluder_between_two_squares_is_found_by_the_rays() {
-    let (r, s) = (rect(1.0, 1.0, 0.0, true), rect(1.0, 1.0, 1.0, false));
+    let (r, s) = (rect_xy(1.0, 1.0, 0.0, true), rect_xy(1.0, 1.0, 1.0, false));
     for (k, plate) in [
         [0.25, 0.75, -1.0, 2.0], // a strip across
         [0.4, 0.6, 0.4, 0.6],    // a small plate
@@ -258,7 +238,7 @@ fn rotation(rng: &mut impl Rng) -> DQuat {
 #[test]
 fn the_stated_error_covers_the_true_error_over_random_placements() {
     let mut rng = stream(2025, 0);
-    let receiver = rect(1.0, 1.0, 0.0, true);
+    let receiver = rect_xy(1.0, 1.0, 0.0, true);
     let (mut cases, mut covered, mut tries) = (0, 0, 0);
     let mut worst: f64 = 0.0;
     while cases < 200 {
@@ -275,7 +255,7 @@ fn the_stated_error_covers_the_true_error_over_random_placements() {
                     rng.random_range(-1.0..2.0),
                     rng.random_range(0.1..2.0),
                 );
-                let v: Vec<DVec3> = rect(a, b, 0.0, true)
+                let v: Vec<DVec3> = rect_xy(a, b, 0.0, true)
                     .iter()
                     .map(|p| c + q * (*p - DVec3::new(0.5 * a, 0.5 * b, 0.0)))
                     .collect();

@@ -11,7 +11,8 @@ use std::f64::consts::PI;
 
 use nusselt::formfactor::closed_form::{c11, c14, discs};
 
-fn rect_xy(a: f64, b: f64, z: f64, up: bool) -> Vec<DVec3> {
+/// An a × b rectangle at the corner of the plane z, facing up or down.
+pub(crate) fn rect_xy(a: f64, b: f64, z: f64, up: bool) -> Vec<DVec3> {
     let mut v = vec![
         DVec3::new(0.0, 0.0, z),
         DVec3::new(a, 0.0, z),
@@ -26,7 +27,7 @@ fn rect_xy(a: f64, b: f64, z: f64, up: bool) -> Vec<DVec3> {
 
 /// A regular m-gon of the same area as the disc of radius r, in the plane
 /// z, facing up or down.
-fn disc(r: f64, z: f64, m: usize, up: bool) -> Vec<DVec3> {
+pub(crate) fn disc(r: f64, z: f64, m: usize, up: bool) -> Vec<DVec3> {
     let t = 2.0 * PI / m as f64;
     let rr = r * (t / t.sin()).sqrt(); // equal area
     let mut v: Vec<DVec3> = (0..m)
