@@ -383,6 +383,17 @@ fn bad_values_are_usage_errors_before_any_work() {
             "--height",
         ),
         (vec!["solve", &scene, "-o", o, "--spp", "0"], "--spp"),
+        (vec!["solve", &scene, "-o", o, "--spp", "65537"], "--spp"),
+        (
+            vec!["reference", &scene, "-o", "ref.exr", "--spp", "4294967295"],
+            "--spp",
+        ),
+        (
+            vec![
+                "probe", &scene, "--random", "4", "-o", "t.csv", "--spp", "1048577",
+            ],
+            "--spp",
+        ),
         (
             vec!["solve", &scene, "-o", o, "--max-iterations", "0"],
             "--max-iterations",

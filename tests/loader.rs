@@ -966,6 +966,34 @@ fn specification_violations_are_refused() {
     json["nodes"][0]["matrix"] = json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
     json["nodes"][0]["translation"] = json!([0, 1, 0]);
     assert!(scene_error(load_json(&json)).contains("both a matrix and"));
+    // Matrices that no translation, rotation and scale make: a projective
+    // last row (m33 = -1 flipped a receiver, and the run reported success),
+    // and a shear. A mirror (negative scale) is decomposable.
+    for (matrix, why) in [
+        (
+            json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1]),
+            "a projection",
+        ),
+        (
+            json!([1, 0, 0, 0.5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]),
+            "a projection",
+        ),
+        (
+            json!([1, 0, 0, 0, 0.5, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]),
+            "a shear",
+        ),
+    ] {
+        let (_, mut json) = valid_json();
+        json["nodes"][0]["matrix"] = matrix;
+        let message = scene_error(load_json(&json));
+        assert!(
+            message.contains("not decomposable") && message.contains(why),
+            "{message}"
+        );
+    }
+    let (_, mut json) = valid_json();
+    json["nodes"][0]["matrix"] = json!([-2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+    load_json(&json).expect("a mirror is a negative scale");
     // A GLB whose header length is not the file's.
     let (g, _) = valid_json();
     let mut longer = g.glb();

@@ -50,6 +50,8 @@ mod lightmap;
 mod output;
 // The penumbra scene's closed form and the solver's error against it.
 mod penumbra;
+// The same scene at any scale gives the same solution and image.
+mod precision;
 // The path-traced reference: closed forms, noise as error predictor, CLI.
 mod reference;
 // The scale-up office family: triangle counts, validity, deterministic writing.

@@ -10,6 +10,8 @@
 use clap::Command;
 use nusselt::hierarchical::{Accuracy, Preset};
 
+use super::args::MAX_PATHS;
+
 /// A knob's value under a preset, as the help shows it.
 type PresetValue = fn(&Accuracy) -> String;
 
@@ -36,8 +38,8 @@ pub fn tailor(cmd: Command) -> Command {
         })
         .mut_subcommand("reference", |c| {
             c.mut_arg("spp", |a| {
-                a.help("Independent paths per pixel (at least 2: the noise image needs two)")
-                    .value_parser(clap::value_parser!(u32).range(2..))
+                a.help("Independent paths per pixel, 2 (the noise image needs two) to 1048576")
+                    .value_parser(clap::value_parser!(u32).range(2..=i64::from(MAX_PATHS)))
             })
             .after_help(REFERENCE_EXAMPLES)
         })
@@ -96,7 +98,7 @@ fn preset_name(p: Preset) -> &'static str {
 }
 
 const STRATIFIED_SPP: &str = "Samples per pixel, stratified (rounded up to a square), and 16 \
-     times as many, at most 4096, in pixels whose samples disagree, such as edges";
+     times as many, at most 4096, in pixels whose samples disagree, such as edges; at most 65536";
 
 const SOLVE_EXAMPLES: &str = "\
 Examples:

@@ -14,7 +14,7 @@ use nusselt::lab::points;
 use nusselt::reference::{self, ProbeSettings};
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs, SkyArgs, csv_path};
+use super::args::{Common, LoadArgs, MAX_PATHS, SkyArgs, csv_path};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -33,8 +33,8 @@ pub struct ProbeArgs {
     /// and its standard error se_r,se_g,se_b.
     #[arg(short, long, value_name = "TABLE.csv", value_parser = csv_path)]
     output: PathBuf,
-    /// Paths per point (at least 2: the standard error needs two).
-    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(2..))]
+    /// Paths per point, 2 (the standard error needs two) to 1048576.
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(2..=i64::from(MAX_PATHS)))]
     spp: u32,
     /// Largest number of reflections per path (default: unlimited).
     #[arg(long)]

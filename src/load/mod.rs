@@ -306,6 +306,14 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
                  specification allows one or the other)"
             ));
         }
+        if let Some(m) = &node.matrix
+            && let Some(why) = not_decomposable(m)
+        {
+            return Err(format!(
+                "node {i}: its matrix is not decomposable into translation, rotation \
+                 and scale, as the specification requires ({why})"
+            ));
+        }
     }
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
@@ -1227,6 +1235,33 @@ fn assemble(mode: Mode, indices: &[u32], flip: bool, dropped: &mut usize) -> Vec
         }
     }
     tris
+}
+
+/// Why a node's column-major `matrix` is not T·R·S, or `None` when it is:
+/// its last row must be (0, 0, 0, 1) (no projection) and its first three
+/// columns must be mutually orthogonal (no shear), to a relative 10⁻⁴ as
+/// float data allows. A zero column is a zero scale, which is allowed.
+fn not_decomposable(m: &[f32; 16]) -> Option<String> {
+    let m = m.map(f64::from);
+    if m.iter().any(|v| !v.is_finite()) {
+        return Some("it has a non-finite entry".into());
+    }
+    let column = |j: usize| DVec3::new(m[4 * j], m[4 * j + 1], m[4 * j + 2]);
+    let size = (0..4).map(|j| column(j).length()).fold(1.0, f64::max);
+    let row = [m[3], m[7], m[11], m[15]];
+    let tol = 1e-4;
+    if row[..3].iter().any(|v| v.abs() > tol * size) || (row[3] - 1.0).abs() > tol {
+        return Some(format!(
+            "its last row is {row:?}, not [0, 0, 0, 1]: a projection"
+        ));
+    }
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let (u, v) = (column(a), column(b));
+        if u.dot(v).abs() > tol * u.length() * v.length() {
+            return Some(format!("columns {a} and {b} are not orthogonal: a shear"));
+        }
+    }
+    None
 }
 
 /// The node's local transform in f64 (matrix, or T·R·S).
