@@ -19,8 +19,12 @@ use std::time::Duration;
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    aabb::Aabb,
+    bvh2::reinsertion::ReinsertionOptimizer,
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    ploc::PlocBuilder,
     ray::{Ray, RayHit},
+    splits::{split_aabbs_precise, split_aabbs_preset},
     triangle::Triangle,
 };
 use rayon::prelude::*;
@@ -50,6 +54,8 @@ pub struct TriangleBvh {
     triangles: Vec<Triangle>,
     /// Input index of each triangle in `triangles`.
     input_index: Vec<u32>,
+    /// Number of triangles given.
+    input_count: usize,
     endpoint_gap: f64,
     /// The scene's length scale the BVH was built for.
     diagonal: f64,
@@ -67,6 +73,81 @@ pub struct TriangleBvh {
 /// scene's size (unscaled, it was 0.1 mm: a ray started that close to a
 /// surface passed through it).
 const SCALED_DIAGONAL: f64 = 1e4;
+
+/// A triangle whose box's half area is more than this many times its own
+/// area is a sliver (a right triangle along the axes: 2; an equilateral one
+/// turned in space: under 5).
+const SLIVER_RATIO: f32 = 8.0;
+
+/// Sliver boxes may grow the BVH's references to at most this many times
+/// the triangle count (a fan's slivers: 8 boxes each). More buys little:
+/// a fan's slivers need boxes in proportion to their length over their
+/// width, and a budget of 2^21 references took a 16,000-triangle fan's
+/// build from 3 s to 23 s and 1.2 GB for a render 2.2× as fast.
+const SLIVER_BUDGET: usize = 16;
+
+/// And to at most this many references in all (about 80 bytes each while
+/// building).
+const MAX_REFERENCES: usize = 1 << 23;
+
+/// The wide BVH of `tris`, built as obvhs's slowest preset builds it (full
+/// reinsertion, its pre-splits of large triangles: 2.2× the rays per second
+/// of its medium build on office-10k, 2.9× on the gallery, for 20–70 ms
+/// more building; bench-visibility), plus splits of slivers' boxes.
+///
+/// obvhs splits a triangle's box only when it is large against the
+/// scene's average, so long thin triangles of similar size are never
+/// split: in a fan of n slivers meeting at one point, every box overlaps
+/// the centre's region and a ray visits O(n) of them (onto a fan of 4,096,
+/// 424 triangle tests a ray; the default render of a 4,000-triangle fan
+/// took 56 s, of a 16-triangle disc 4 s). Each
+/// sliver's box is split along its longest axis, each piece fitted to the
+/// triangle's part inside it, while that halves the boxes' area, to at
+/// most 2^k pieces with k chosen so the references stay within
+/// [`SLIVER_BUDGET`] times the triangles.
+fn build(tris: &[Triangle]) -> CwBvh {
+    let params = BvhBuildParams::very_slow_build();
+    let mut aabbs: Vec<Aabb> = tris.iter().map(Triangle::aabb).collect();
+    let mut indices: Vec<u32> = (0..tris.len() as u32).collect();
+    let largest = aabbs.iter().map(Aabb::half_area).fold(0.0, f32::max);
+    let average = aabbs.iter().map(Aabb::half_area).sum::<f32>() / tris.len() as f32;
+    split_aabbs_preset(&mut aabbs, &mut indices, tris, average, largest);
+    let area = |i: u32| {
+        let t = &tris[i as usize];
+        0.5 * (t.v1 - t.v0).cross(t.v2 - t.v0).length()
+    };
+    let positions: Vec<usize> = (0..aabbs.len())
+        .filter(|&k| aabbs[k].half_area() > SLIVER_RATIO * area(indices[k]))
+        .collect();
+    let room = (SLIVER_BUDGET * tris.len())
+        .min(MAX_REFERENCES)
+        .saturating_sub(aabbs.len())
+        / positions.len().max(1);
+    let rounds = room.max(1).ilog2().min(10);
+    if !positions.is_empty() && rounds > 0 {
+        let mut pieces: Vec<Aabb> = positions.iter().map(|&k| aabbs[k]).collect();
+        let mut of: Vec<u32> = positions.iter().map(|&k| indices[k]).collect();
+        // Thresholds 0: every sliver is a candidate; a split is kept when
+        // it takes the box's half area below 1/1.8 of what it was.
+        split_aabbs_precise(&mut pieces, &mut of, tris, 0.0, 0.0, 1.8, 1.8, rounds, 12);
+        // The first pieces replace the slivers' boxes, the rest are added.
+        for (&k, piece) in positions.iter().zip(&pieces) {
+            aabbs[k] = *piece;
+        }
+        aabbs.extend_from_slice(&pieces[positions.len()..]);
+        indices.extend_from_slice(&of[positions.len()..]);
+    }
+    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+        params.ploc_search_distance,
+        &aabbs,
+        indices,
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    bvh2.uses_spatial_splits = true;
+    ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false)
+}
 
 impl TriangleBvh {
     /// Builds the BVH. `diagonal` is the scene's length scale.
@@ -94,11 +175,7 @@ impl TriangleBvh {
         let (bvh, ordered, input_index) = if tris.is_empty() {
             (CwBvh::default(), Vec::new(), Vec::new())
         } else {
-            let mut core = Duration::default();
-            // obvhs's slowest build (full reinsertion, pre-splits): 2.2× the
-            // rays per second of its medium build on office-10k, 2.9× on
-            // the gallery, for 20–70 ms more building (bench-visibility).
-            let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::very_slow_build(), &mut core);
+            let bvh = build(&tris);
             let ordered = bvh
                 .primitive_indices
                 .iter()
@@ -111,6 +188,7 @@ impl TriangleBvh {
             bvh,
             triangles: ordered,
             input_index,
+            input_count: triangles.len(),
             endpoint_gap: ENDPOINT_GAP * diagonal,
             diagonal,
             scale,
@@ -130,9 +208,10 @@ impl TriangleBvh {
         TriangleBvh::new(&occluders, scene.diagonal())
     }
 
-    /// Number of triangles.
+    /// Number of triangles (as given: a triangle split into several boxes
+    /// counts once).
     pub fn len(&self) -> usize {
-        self.triangles.len()
+        self.input_count
     }
 
     /// True when there are no triangles.
@@ -258,6 +337,44 @@ mod tests {
         // Endpoints on the square itself never occlude themselves.
         assert!(bvh.visible(DVec3::new(0.3, 0.3, 0.0), DVec3::new(0.3, 0.3, 2.0)));
         assert!(bvh.visible(DVec3::new(0.3, 0.3, 2.0), DVec3::new(0.3, 0.3, 0.0)));
+    }
+
+    /// A disc of `n` slivers meeting at its centre (in z = 0), and the
+    /// mean number of triangle tests of a vertical ray down onto it.
+    fn fan_tests_per_ray(n: usize) -> f64 {
+        let rim = |k: usize| {
+            let a = std::f32::consts::TAU * k as f32 / n as f32;
+            Vec3::new(a.cos(), a.sin(), 0.0)
+        };
+        let tris: Vec<[Vec3; 3]> = (0..n).map(|k| [Vec3::ZERO, rim(k), rim(k + 1)]).collect();
+        let bvh = TriangleBvh::new(&tris, 2.0);
+        let (mut tests, mut hits, rays) = (0usize, 0usize, 400);
+        for i in 0..rays {
+            // A spiral of points over the disc.
+            let (r, a) = (
+                ((i as f32 + 0.5) / rays as f32).sqrt() * 0.99,
+                i as f32 * 2.4,
+            );
+            let origin = Vec3A::new(r * a.cos(), r * a.sin(), 1.0) * bvh.scale as f32;
+            let ray = Ray::new(origin, Vec3A::new(0.0, 0.0, -1.0), 0.0, f32::MAX);
+            let mut hit = RayHit::none();
+            hits += usize::from(bvh.bvh.ray_traverse(ray, &mut hit, |ray, id| {
+                tests += 1;
+                bvh.triangles[id].intersect(ray)
+            }));
+        }
+        assert_eq!(hits, rays, "every ray hits the disc");
+        tests as f64 / rays as f64
+    }
+
+    /// Slivers' boxes are split: without, a ray onto a fan of 256 slivers
+    /// tested 27.8 triangles and onto one of 4,096 423.6 (the boxes all
+    /// overlap near the centre); with, 7.6 and 57.5.
+    #[test]
+    fn a_fan_of_slivers_costs_a_ray_far_fewer_than_its_triangles() {
+        let (small, large) = (fan_tests_per_ray(256), fan_tests_per_ray(4096));
+        eprintln!("fan: {small:.1} tests a ray at 256 slivers, {large:.1} at 4096");
+        assert!(large < 128.0, "{large} tests a ray");
     }
 
     #[test]
