@@ -176,6 +176,24 @@ fn spent_time_budget_solves_the_first_links() {
     assert_eq!(c.elements, c.patches, "nothing split");
     assert!(c.links < f.links / 10, "{} vs {}", c.links, f.links);
     assert!(c.cluster_links > Some(0), "{c:?}");
+    // The budget covers the whole run: the output mesh's points after its
+    // share took their leaves' values, the render one sample a pixel.
+    let (late, free_mesh) = (
+        r.report.mesh.as_ref().unwrap(),
+        free.report.mesh.as_ref().unwrap(),
+    );
+    assert!(
+        late.evaluations > 0 && late.late_evaluations == late.evaluations,
+        "{late:?}"
+    );
+    assert_eq!(free_mesh.late_evaluations, 0);
+    let said = |run: &SolveRun, what: &str| run.report.warnings.iter().any(|w| w.starts_with(what));
+    assert!(
+        said(&r, "output mesh:") && said(&r, "render:"),
+        "{:?}",
+        r.report.warnings
+    );
+    assert!(!said(&free, "output mesh:") && !said(&free, "render:"));
 }
 
 /// Cluster openings count against the link budget like splits.

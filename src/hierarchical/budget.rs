@@ -83,7 +83,12 @@ impl BudgetHit {
             }
             Budget::Time => {
                 let secs = |ms: u64| format!("{:.1} s", ms as f64 / 1000.0);
-                (secs(self.limit), secs(self.reached))
+                return format!(
+                    "hierarchical: refinement stopped after {}, its share ({:.0} %) of \
+                     --time-budget; raise --time-budget for a finer solution",
+                    secs(self.reached),
+                    100.0 * REFINE_SHARE
+                );
             }
         };
         format!(
@@ -94,6 +99,15 @@ impl BudgetHit {
         )
     }
 }
+
+/// The part of `--time-budget` (counted from the run's start) that
+/// linking and refinement may use; solving, the output mesh
+/// ([`MESH_SHARE`]) and the render get the rest.
+pub const REFINE_SHARE: f64 = 0.4;
+
+/// The part of `--time-budget` by whose end the output mesh stops
+/// evaluating points by rays (later points take their leaf's value).
+pub const MESH_SHARE: f64 = 0.8;
 
 /// The first linking did not fit a budget at the settings' thresholds and
 /// started again with every threshold `factor` times coarser (also

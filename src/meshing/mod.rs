@@ -126,6 +126,11 @@ pub struct MeshSettings {
     pub adapt_passes: usize,
     /// Seed of the vertices' visibility rays.
     pub seed: u64,
+    /// The run's time budget ends here (`--time-budget`): points evaluated
+    /// after it take their leaf's value (see
+    /// [`PointEvaluator::leaf_value`]) and adaptivity stops.
+    #[serde(skip)]
+    pub deadline: Option<Instant>,
 }
 
 impl MeshSettings {
@@ -152,6 +157,7 @@ impl Default for MeshSettings {
             adapt_budget: 0.5,
             adapt_passes: 3,
             seed: 0,
+            deadline: None,
         }
     }
 }
@@ -178,6 +184,9 @@ pub struct MeshStats {
     pub direct_emitters: usize,
     /// Point evaluations (vertices, copies and centroid checks).
     pub evaluations: usize,
+    /// Of those, how many took their leaf's value because the time budget
+    /// was spent.
+    pub late_evaluations: usize,
     /// Wall time in [`triangulate_patches`], over all passes.
     pub triangulate_seconds: f64,
     /// Wall time evaluating vertex and centroid values and assembling the
@@ -205,7 +214,7 @@ pub fn build_mesh(
         MeshMode::Discontinuity => contact::contact_segments(segments, np),
         MeshMode::Uniform | MeshMode::Quadtree => vec![Vec::new(); np],
     };
-    let points = PointEvaluator::new(scene, bvh, solution, settings.seed);
+    let points = PointEvaluator::new(scene, bvh, solution, settings.seed).until(settings.deadline);
     stats.direct_emitters = points.direct_emitters().len();
     let (exitance, _, _) = scene_scales(scene);
     let mesher = Mesher {
@@ -223,6 +232,7 @@ pub fn build_mesh(
     };
     let (tris, cache) = mesher.triangulate_and_evaluate(inputs, &mut stats)?;
     let mesh = mesher.assemble(&tris, &cache, &mut stats);
+    stats.late_evaluations = mesher.points.late_count();
     Ok((mesh, stats))
 }
 
@@ -281,6 +291,7 @@ impl Mesher<'_> {
             let budget = (settings.adapt_budget * stats.initial_vertices as f64) as usize;
             let adapt = settings.mode == MeshMode::Discontinuity
                 && settings.adapt_tol > 0.0
+                && !self.points.late()
                 && pass < settings.adapt_passes
                 && added < budget;
             if !adapt {

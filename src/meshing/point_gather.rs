@@ -16,6 +16,9 @@
 //! count or the order of evaluation; values are finite and, from
 //! [`PointEvaluator`], non-negative.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -288,6 +291,11 @@ pub struct PointEvaluator<'a> {
     direct: Vec<u32>,
     /// [`PointGather::dark`].
     dark: Vec<u64>,
+    /// Points evaluated from then on take their leaf's value
+    /// ([`PointEvaluator::leaf_value`]).
+    deadline: Option<Instant>,
+    /// How many did.
+    late: AtomicUsize,
 }
 
 impl<'a> PointEvaluator<'a> {
@@ -314,6 +322,8 @@ impl<'a> PointEvaluator<'a> {
             seed,
             direct,
             dark,
+            deadline: None,
+            late: AtomicUsize::new(0),
         }
     }
 
@@ -326,6 +336,10 @@ impl<'a> PointEvaluator<'a> {
     /// The radiosity and irradiance at `x` on patch `patch`, `link_rays`
     /// saying which links cast their own rays from `x`.
     pub fn value(&self, patch: usize, x: DVec3, link_rays: LinkRays) -> PointLight {
+        if self.late() {
+            self.late.fetch_add(1, Ordering::Relaxed);
+            return self.leaf_value(patch, x);
+        }
         let leaf = self.solution.hierarchy.leaf_at(self.scene, patch, x);
         let gather = PointGather {
             link_rays,
@@ -341,6 +355,34 @@ impl<'a> PointEvaluator<'a> {
             self.seed,
             gather,
         )
+        .non_negative()
+    }
+
+    /// The evaluator with a time budget that ends at `deadline`: from
+    /// then on [`PointEvaluator::value`] gives [`PointEvaluator::leaf_value`].
+    pub fn until(self, deadline: Option<Instant>) -> Self {
+        PointEvaluator { deadline, ..self }
+    }
+
+    /// True once the deadline has passed.
+    pub fn late(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
+
+    /// How many values were leaf values for the deadline.
+    pub fn late_count(&self) -> usize {
+        self.late.load(Ordering::Relaxed)
+    }
+
+    /// The light of the leaf of `patch` holding `x`: its mean radiosity and
+    /// irradiance, no rays. What a point gets once the time budget is
+    /// spent: piecewise constant over the leaves.
+    pub fn leaf_value(&self, patch: usize, x: DVec3) -> PointLight {
+        let leaf = self.solution.hierarchy.leaf_at(self.scene, patch, x);
+        PointLight {
+            radiosity: self.solution.hierarchy.get(leaf).radiosity,
+            irradiance: self.solution.irradiance[leaf.index()],
+        }
         .non_negative()
     }
 }

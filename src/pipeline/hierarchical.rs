@@ -5,7 +5,7 @@
 //! Invariant: the phases run in that order, each timed into the report;
 //! snapshots of a hierarchical solve show the final state.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -14,9 +14,10 @@ use serde_json::json;
 use super::{SolveRun, SolveSettings, convergence_report, finish, new_report, secs};
 use crate::discontinuity::discontinuity_segments;
 use crate::error::Result;
+use crate::hierarchical::budget::{MESH_SHARE, REFINE_SHARE};
 use crate::hierarchical::{HierarchicalSettings, HierarchicalSolution, solve_hierarchical_guided};
 use crate::meshing::{MeshMode, MeshSettings, build_mesh};
-use crate::render::render;
+use crate::render::render_until;
 use crate::render::view::View;
 use crate::report::{CorrectionReport, Counts, ImportanceReport, Power, Report};
 use crate::scene::Scene;
@@ -51,7 +52,19 @@ pub(super) fn solve(
         Vec::new()
     };
 
+    // `--time-budget` bounds the whole run: refinement stops at its
+    // REFINE_SHARE (its own clock starts now), the output mesh at
+    // MESH_SHARE, the render at its end.
+    let budget = settings.hierarchical.time_budget;
+    let at = |share: f64| {
+        budget.and_then(|t| {
+            Duration::try_from_secs_f64(t * share)
+                .ok()
+                .and_then(|d| start.checked_add(d))
+        })
+    };
     let mut hs = settings.hierarchical.clone();
+    hs.time_budget = budget.map(|t| (t * REFINE_SHARE - start.elapsed().as_secs_f64()).max(0.0));
     if settings.importance {
         hs.importance = Some(view_importance(scene, &bvh, &view));
     }
@@ -61,15 +74,31 @@ pub(super) fn solve(
     let t = Instant::now();
     let mesh_settings = MeshSettings {
         seed: hs.seed,
+        deadline: at(MESH_SHARE),
         ..settings.mesh.clone()
     };
     let (out, mesh_stats) = build_mesh(scene, &bvh, &solution, &guide, &mesh_settings, progress)?;
     report.times.output_mesh = secs(t);
+    if mesh_stats.late_evaluations > 0 {
+        report.warnings.push(format!(
+            "output mesh: {} of {} points took their leaf's value, without rays: the time \
+             budget's share ({:.0} %) for the output mesh was spent",
+            mesh_stats.late_evaluations,
+            mesh_stats.evaluations,
+            100.0 * MESH_SHARE
+        ));
+    }
     report.mesh = Some(mesh_stats);
 
     let t = Instant::now();
-    let frame = render(&out, &view, &settings.render, progress);
+    let (frame, short) = render_until(&out, &view, &settings.render, progress, at(1.0));
     report.times.render += secs(t);
+    if short > 0 {
+        report.warnings.push(format!(
+            "render: {short} of {} pixels got fewer samples than asked: the time budget was spent",
+            u64::from(view.width) * u64::from(view.height)
+        ));
+    }
     let mut snapshots = Vec::new();
     for &k in &settings.snapshots {
         if !snapshots.iter().any(|(j, _)| *j == k) {

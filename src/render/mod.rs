@@ -25,6 +25,9 @@ pub mod frame;
 pub mod view;
 pub mod wireframe;
 
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
 use glam::{DVec3, Vec3};
 use rand::Rng;
 use rayon::prelude::*;
@@ -91,6 +94,22 @@ pub fn render(
     settings: &RenderSettings,
     progress: &Progress,
 ) -> Frame {
+    render_until(mesh, view, settings, progress, None).0
+}
+
+/// [`render`] within a time budget that ends at `deadline`: rows begun
+/// after it take one sample a pixel, and edge pixels are sampled again
+/// only while it lasts. Returns the image and how many of its pixels got
+/// fewer samples than `settings` asks (0 without a deadline).
+pub fn render_until(
+    mesh: &OutputMesh,
+    view: &View,
+    settings: &RenderSettings,
+    progress: &Progress,
+    deadline: Option<Instant>,
+) -> (Frame, u64) {
+    let late = || deadline.is_some_and(|d| Instant::now() >= d);
+    let short = AtomicU64::new(0);
     let bvh = mesh_bvh(mesh);
     let side = |spp: u32| (spp.max(1) as f64).sqrt().ceil() as u32;
     let (w, h) = (view.width, view.height);
@@ -119,7 +138,14 @@ pub fn render(
     let mut pixels: Vec<(DVec3, f64)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
-            let row: Vec<_> = (0..w).map(|x| pixel(x, y, first, 0x7265_6e64)).collect();
+            let n = match late() {
+                true => {
+                    short.fetch_add(u64::from(w), Ordering::Relaxed);
+                    1
+                }
+                false => first,
+            };
+            let row: Vec<_> = (0..w).map(|x| pixel(x, y, n, 0x7265_6e64)).collect();
             phase.inc(1);
             row
         })
@@ -133,19 +159,24 @@ pub fn render(
             .with_min_len(64)
             .for_each(|(k, p)| {
                 if p.1 > limit {
+                    if late() {
+                        short.fetch_add(1, Ordering::Relaxed);
+                        return;
+                    }
                     let (x, y) = ((k % w as usize) as u32, (k / w as usize) as u32);
                     *p = pixel(x, y, edge, 0x6564_6765);
                 }
             });
     }
-    Frame {
+    let frame = Frame {
         width: w,
         height: h,
         pixels: pixels
             .into_iter()
             .map(|(c, _)| c.as_vec3().to_array())
             .collect(),
-    }
+    };
+    (frame, short.into_inner())
 }
 
 /// Largest coordinate magnitude [`mesh_bvh`] accepts: beyond it the BVH
