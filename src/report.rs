@@ -245,4 +245,38 @@ pub struct Report {
     pub threads: usize,
     /// Non-fatal findings, one line each.
     pub warnings: Vec<String>,
+    /// Every other file of the run, in the order written, with its size
+    /// and CRC-32. `report.json` is the last file of the run put in place
+    /// and the first removed when a later run replaces it (`output::commit`),
+    /// so a folder whose `report.json` lists files that are all there with
+    /// these sizes and CRCs holds one run's complete result set.
+    #[serde(default)]
+    pub files: Vec<FileRecord>,
+}
+
+/// One file of a run, as `report.json` lists it.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub struct FileRecord {
+    /// The file's name in the run's folder.
+    pub name: String,
+    /// Its size in bytes.
+    pub bytes: u64,
+    /// Its CRC-32 (zlib's, as Python's `zlib.crc32` gives it).
+    pub crc32: u32,
+}
+
+impl FileRecord {
+    /// The record of `bytes` written as `name`.
+    pub fn of(name: &str, bytes: &[u8]) -> FileRecord {
+        FileRecord {
+            name: name.to_string(),
+            bytes: bytes.len() as u64,
+            crc32: crc32fast::hash(bytes),
+        }
+    }
+
+    /// Whether `bytes` are this record's file.
+    pub fn matches(&self, bytes: &[u8]) -> bool {
+        self.bytes == bytes.len() as u64 && self.crc32 == crc32fast::hash(bytes)
+    }
 }

@@ -20,6 +20,8 @@ mod cli;
 mod closed_forms;
 // Clustering: same solutions with and without, sub-quadratic link growth.
 mod clustering;
+// A run's files all or nothing: kill -9 in the write phase, Ctrl-C, leftovers, earlier runs' files.
+mod commit;
 // `nusselt compare`: image metrics, the reference-noise correction, exit codes.
 mod compare;
 // The whole `solve` command is bit-identical across runs and thread counts.

@@ -23,13 +23,21 @@ pub struct ChartArgs {
 
 /// Runs `nusselt chart`.
 pub fn run(args: ChartArgs) -> Result<()> {
+    for report in &args.reports {
+        super::recover_beside(report)?;
+    }
     let runs = args
         .reports
         .iter()
         .map(|p| convergence::read_convergence(p))
         .collect::<nusselt::Result<Vec<_>>>()?;
     let charts = convergence::convergence_charts(&runs)?;
-    let mut set = OutputSet::create(&args.output)?;
+    let mut set = OutputSet::create(&args.output)?.replacing(&[
+        "residual-iterations.svg",
+        "residual-iterations.png",
+        "residual-time.svg",
+        "residual-time.png",
+    ]);
     for chart in &charts {
         set.stage(&format!("{}.svg", chart.stem), chart.images.svg.as_bytes())?;
         set.stage(&format!("{}.png", chart.stem), &chart.images.png)?;

@@ -13,6 +13,10 @@ use clap::Args;
 use nusselt::lab::points;
 use nusselt::output::OutputSet;
 
+/// What `compare -o DIR` writes, either form: the files of the other form
+/// from an earlier comparison are removed with the commit.
+const COMPARE_OUTPUTS: &[&str] = &["error.exr", "error.png", "points.csv", "metrics.json"];
+
 #[derive(Args, Debug)]
 pub struct CompareArgs {
     /// The image to judge (OpenEXR, RGB), or a solution.exr when the
@@ -44,6 +48,8 @@ pub fn run(args: CompareArgs) -> Result<()> {
     {
         return compare_points(&args);
     }
+    super::recover_beside(&args.test)?;
+    super::recover_beside(&args.reference)?;
     let comparison = nusselt::lab::compare::compare_files(&args.test, &args.reference)?;
     let json = nusselt::output::write_json(&comparison.metrics)?;
     if let Some(dir) = &args.output {
@@ -52,7 +58,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
             &comparison.reference,
             args.max_error,
         )?;
-        let mut set = OutputSet::create(dir)?;
+        let mut set = OutputSet::create(dir)?.replacing(COMPARE_OUTPUTS);
         set.stage("error.exr", &images.exr)?;
         set.stage("error.png", &images.png)?;
         set.stage("metrics.json", &json)?;
@@ -64,13 +70,14 @@ pub fn run(args: CompareArgs) -> Result<()> {
 
 /// A solution against a point table.
 fn compare_points(args: &CompareArgs) -> Result<()> {
+    super::recover_beside(&args.test)?;
     let mesh = nusselt::output::exr::read_solution(&args.test)?;
     let table = points::read_table(&args.reference)?;
     let (score, errors) = points::score(&mesh, &table)?;
     let json = nusselt::output::write_json(&score)?;
     if let Some(dir) = &args.output {
         let csv = points::encode_errors(&errors)?;
-        let mut set = OutputSet::create(dir)?;
+        let mut set = OutputSet::create(dir)?.replacing(COMPARE_OUTPUTS);
         set.stage("points.csv", &csv)?;
         set.stage("metrics.json", &json)?;
         set.commit()?;

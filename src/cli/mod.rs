@@ -135,8 +135,10 @@ fn load(
 }
 
 /// On Ctrl-C (or SIGTERM): clear the progress line, say "interrupted",
-/// exit 130. Outputs are staged and renamed only after success, so an
-/// interrupted run leaves earlier results as they were.
+/// remove this run's staged files and exit 130. Outputs are put in place
+/// only after success, all together (`nusselt::output::commit`), so an
+/// interrupted run leaves earlier results as they were; one interrupted
+/// during its last few renames finishes them first.
 fn on_interrupt() {
     let _ = ctrlc::set_handler(|| {
         use std::io::{IsTerminal, Write};
@@ -145,8 +147,19 @@ fn on_interrupt() {
             let _ = write!(err, "\r\x1b[2K");
         }
         let _ = writeln!(err, "interrupted");
-        std::process::exit(130);
+        nusselt::output::clean_up_and_exit(130);
     });
+}
+
+/// Before `file` is read as (part of) a result: finishes a commit of its
+/// folder that a killed run left half done (`nusselt::output::recover`), so
+/// that what is read belongs to one run.
+fn recover_beside(file: &std::path::Path) -> nusselt::Result<()> {
+    let dir = match file.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    nusselt::output::recover(dir)
 }
 
 /// `text` on one line, safe for a terminal: line breaks become spaces and

@@ -2,8 +2,10 @@
 //! again.
 //!
 //! Invariant: with no view flags, the view is the solve's (from the
-//! `report.json` beside the solution), so the image matches the solve's
-//! own render; the exposure is the solve's from any view.
+//! `report.json` beside the solution, when that report lists this
+//! solution), so the image matches the solve's own render; the exposure is
+//! the solve's from any view. A commit that a killed solve left half done
+//! in the solution's folder is finished before anything is read.
 
 use std::path::PathBuf;
 
@@ -41,6 +43,27 @@ pub struct RenderArgs {
     common: Common,
 }
 
+/// The solve's report, when it sits beside the solution and lists it (the
+/// same size and CRC-32 as one of its `files`, under any name): it gives
+/// the view and the exposure.
+/// A report of another run (the solution was replaced or copied over) is
+/// left aside with a warning; one of an older nusselt, which lists no
+/// files, is trusted.
+fn solve_report(solution: &std::path::Path, bytes: &[u8]) -> Option<Report> {
+    let path = solution.with_file_name("report.json");
+    let report: Report = serde_json::from_slice(&std::fs::read(&path).ok()?).ok()?;
+    if report.files.is_empty() || report.files.iter().any(|f| f.matches(bytes)) {
+        Some(report)
+    } else {
+        super::warn(&format!(
+            "{} is not the report of {} (another run's); using the default view",
+            path.display(),
+            solution.display()
+        ));
+        None
+    }
+}
+
 /// Runs `nusselt render`.
 pub fn run(args: RenderArgs) -> Result<()> {
     init_threads(args.common.threads)?;
@@ -49,14 +72,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     for target in std::iter::once(&args.output).chain(&args.png) {
         nusselt::output::check_target(target)?;
     }
-    let mesh = nusselt::output::exr::read_solution(&args.solution)?;
+    super::recover_beside(&args.solution)?;
+    let bytes =
+        std::fs::read(&args.solution).map_err(|e| nusselt::Error::input(&args.solution, e))?;
+    let mesh = exr::decode_solution(&bytes, &args.solution)?;
     mesh.validate()
         .map_err(|e| anyhow::anyhow!("{}: invalid solution: {e}", args.solution.display()))?;
-    // The solve's report, when it sits beside the solution, gives the view.
-    let report_path = args.solution.with_file_name("report.json");
-    let report: Option<Report> = std::fs::read(&report_path)
-        .ok()
-        .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+    let report = solve_report(&args.solution, &bytes);
     let (lo, hi) = mesh
         .positions
         .iter()

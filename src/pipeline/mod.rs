@@ -33,7 +33,7 @@ use crate::render::RenderSettings;
 use crate::render::frame::Frame;
 use crate::render::view::{View, ViewOverrides};
 use crate::render::wireframe;
-use crate::report::{ConvergenceReport, HistoryEntry, Report};
+use crate::report::{ConvergenceReport, FileRecord, HistoryEntry, Report};
 use crate::scene::Scene;
 use crate::util::progress::Progress;
 
@@ -330,13 +330,51 @@ pub fn frame_exposure(frame: &Frame) -> f32 {
     output::png::auto_exposure(frame.pixels.iter().map(|p| output::png::luminance(*p)))
 }
 
+/// Every name `solve` may write into its folder: a run removes those of an
+/// earlier run that it does not write itself (snapshots, lightmaps, the
+/// other form of the bake), so that they never stay beside its result.
+pub const SOLVE_OUTPUTS: &[&str] = &[
+    "solution.exr",
+    "baked.gltf",
+    "baked.bin",
+    "baked.glb",
+    "lightmap-B.exr",
+    "lightmap-H.exr",
+    "lightmap.png",
+    "render.exr",
+    "render.png",
+    "snapshot-*.exr",
+    "snapshot-*.png",
+    "report.json",
+];
+
+/// A run's files as they are staged: each one also listed in the report.
+struct Staging<'a> {
+    set: OutputSet,
+    files: &'a mut Vec<FileRecord>,
+}
+
+impl Staging<'_> {
+    fn stage(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        self.set.stage(name, bytes)?;
+        self.files.push(FileRecord::of(name, bytes));
+        Ok(())
+    }
+}
+
 /// Writes the five outputs of the contract (the bake as `baked.gltf` +
-/// `baked.bin`, or `baked.glb`), and any snapshots, into `dir`
-/// (staged, then renamed together). Fills `report.times.write` before
+/// `baked.bin`, or `baked.glb`), and any snapshots and lightmaps, into
+/// `dir` as one result set ([`OutputSet`]): `report.json` last, listing the
+/// others ([`Report::files`]); an earlier run's [`SOLVE_OUTPUTS`] that this
+/// run does not write are removed. Fills `report.times.write` before
 /// writing the report.
 pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
     let t = Instant::now();
-    let mut set = OutputSet::create(dir)?;
+    let mut files = Vec::new();
+    let mut set = Staging {
+        set: OutputSet::create(dir)?.replacing(SOLVE_OUTPUTS),
+        files: &mut files,
+    };
     let exposure = run.report.exposure;
     let scene = run.report.scene.as_str();
     let info = |quantity| ImageInfo::new(quantity).scene(scene);
@@ -394,6 +432,8 @@ pub fn write_outputs(dir: &Path, run: &mut SolveRun) -> Result<Vec<PathBuf>> {
             &output::png::encode_png(frame, exposure)?,
         )?;
     }
+    let mut set = set.set;
+    run.report.files = files;
     run.report.times.write = secs(t);
     run.report.times.total += run.report.times.write;
     set.stage("report.json", &output::write_json(&run.report)?)?;
