@@ -40,14 +40,16 @@ mod hard;
 mod hierarchical;
 // View importance: fewer elements, as accurate in the view.
 mod importance;
-// The glTF loader: the scene contract, and hostile or malformed input refused.
-mod loader;
-// The output mesh in its three modes: validity, contact lines, adaptivity.
-mod meshing;
-// Punctual lights and the sky: closed forms, energy, sharp shadows, the path tracer.
-mod lights;
 // Lightmaps: the atlas agrees with the mesh, no holes, TEXCOORD_1, the bake's atlas.
 mod lightmap;
+// Punctual lights and the sky: closed forms, energy, sharp shadows, the path tracer.
+mod lights;
+// The glTF loader: the scene contract, and hostile or malformed input refused.
+mod loader;
+// Sizes from input or flags refused before allocation, the binary run under an address-space limit.
+mod memory_limit;
+// The output mesh in its three modes: validity, contact lines, adaptivity.
+mod meshing;
 // Output encoders, readers and atomic writing.
 mod output;
 // The penumbra scene's closed form and the solver's error against it.

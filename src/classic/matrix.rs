@@ -161,9 +161,14 @@ pub struct FormFactorMatrix {
 }
 
 impl FormFactorMatrix {
-    /// Bytes a matrix of `n` elements takes.
+    /// Bytes a matrix of `n` elements takes (saturating).
     pub fn bytes_for(n: usize) -> u64 {
-        (n as u64) * (n as u64) * 4
+        Self::bytes_for_count(n as u64)
+    }
+
+    /// [`Self::bytes_for`] of a count not yet known to fit a `usize`.
+    pub fn bytes_for_count(n: u64) -> u64 {
+        n.saturating_mul(n).saturating_mul(4)
     }
 
     /// An all-zero matrix, if it fits the budget.

@@ -1,9 +1,15 @@
 //! Uniform meshing: every patch cut into a regular grid of elements no
 //! larger than a requested size, and the output mesh built on that grid.
 //!
-//! Owns: [`UniformMesh`], the element list of the classic solvers.
+//! Owns: [`UniformMesh`], the element list of the classic solvers, and the
+//! count of its elements from the patch edges alone
+//! ([`UniformMesh::element_count`]), which [`UniformMesh::within_budget`]
+//! checks against a memory budget before anything is allocated.
 //!
 //! Invariants:
+//! - [`UniformMesh::element_count`] is exactly the length of
+//!   [`UniformMesh::elements`] for the same size (saturating at
+//!   `u64::MAX`), computed without allocating.
 //! - The elements of a patch tile it exactly (their areas sum to the
 //!   patch's area) and keep its orientation.
 //! - Cut counts depend only on patch edge lengths, so patches of the same
@@ -23,6 +29,7 @@
 
 use glam::{DVec3, Vec3};
 
+use crate::error::{Error, Result};
 use crate::mesh::OutputMesh;
 use crate::scene::{Patch, Scene, Shape, polygon_area_normal, polygon_centroid};
 
@@ -73,7 +80,87 @@ fn cuts(len: f64, h: f64) -> usize {
     }
 }
 
+/// Bytes a uniform mesh and the classic solve hold per element, besides
+/// the matrix: the element with its corners on the heap (about 200), its
+/// grid cell and node (about 70), and the eight per-element vectors of the
+/// solve (reflectance, emission, area, light, source, radiosity,
+/// irradiance, output sums; about 180); rounded up.
+pub const ELEMENT_BYTES: u64 = 512;
+
+/// `bytes` for messages: in MiB below 1 GiB, else in the largest of GiB,
+/// TiB, PiB and EiB that keeps at least 1; a saturated count
+/// (`u64::MAX`) reads "more than 16 EiB".
+pub fn human_bytes(bytes: u64) -> String {
+    if bytes == u64::MAX {
+        return "more than 16 EiB".into();
+    }
+    let mib = bytes as f64 / (1u64 << 20) as f64;
+    if mib < 1024.0 {
+        return format!("{mib:.1} MiB");
+    }
+    let mut value = mib / 1024.0;
+    for unit in ["GiB", "TiB", "PiB"] {
+        if value < 1024.0 {
+            return format!("{value:.2} {unit}");
+        }
+        value /= 1024.0;
+    }
+    format!("{value:.2} EiB")
+}
+
+/// `x` as written, or in scientific notation when that is shorter.
+fn short_number(x: f64) -> String {
+    let plain = x.to_string();
+    let sci = format!("{x:e}");
+    if sci.len() < plain.len() { sci } else { plain }
+}
+
 impl UniformMesh {
+    /// How many elements [`Self::new`] makes for `element_size`, from the
+    /// patch edges alone (saturating; nothing is allocated).
+    pub fn element_count(scene: &Scene, element_size: f64) -> u64 {
+        scene
+            .patches
+            .iter()
+            .map(|patch| {
+                let (a, b) = grid_cuts(patch, element_size);
+                let (a, b) = (a as u64, b as u64);
+                match patch.shape {
+                    Shape::Quad => a.saturating_mul(b),
+                    Shape::Triangle => a.saturating_mul(a),
+                }
+            })
+            .fold(0u64, u64::saturating_add)
+    }
+
+    /// [`Self::new`], once the elements' memory ([`ELEMENT_BYTES`] each)
+    /// plus `solver_bytes(elements)` (the matrix and whatever the solver
+    /// adds, described by `solver`, as in "with their dense matrix") fits
+    /// `memory_budget`; otherwise an error naming `--element-size`, the
+    /// element count and the memory it would need.
+    pub fn within_budget(
+        scene: &Scene,
+        element_size: f64,
+        memory_budget: u64,
+        solver: &str,
+        solver_bytes: impl Fn(u64) -> u64,
+    ) -> Result<UniformMesh> {
+        let n = Self::element_count(scene, element_size);
+        let need = n
+            .saturating_mul(ELEMENT_BYTES)
+            .saturating_add(solver_bytes(n));
+        if need > memory_budget {
+            return Err(Error::Setting(format!(
+                "--element-size {} makes {n} elements, which need {} {solver}, \
+                 over the memory budget of {} (use larger elements or raise --memory-budget)",
+                short_number(element_size),
+                human_bytes(need),
+                human_bytes(memory_budget)
+            )));
+        }
+        Ok(Self::new(scene, element_size))
+    }
+
     /// Cuts every patch of `scene` into elements whose edges are at most
     /// `element_size` long (at least one element per patch).
     pub fn new(scene: &Scene, element_size: f64) -> UniformMesh {
@@ -192,12 +279,30 @@ fn drop_unused_vertices(mut mesh: OutputMesh) -> OutputMesh {
     out
 }
 
-fn patch_grid(patch: &Patch, h: f64, first_element: usize) -> PatchGrid {
+/// The cuts of a patch's grid: (n_u, n_v) for a quad, (n, n) for a
+/// triangle.
+fn grid_cuts(patch: &Patch, h: f64) -> (usize, usize) {
     let [p0, p1, p2, p3] = patch.corners;
     match patch.shape {
+        Shape::Quad => (
+            cuts((p1 - p0).length().max((p2 - p3).length()), h),
+            cuts((p3 - p0).length().max((p2 - p1).length()), h),
+        ),
+        Shape::Triangle => {
+            let longest = (p1 - p0)
+                .length()
+                .max((p2 - p1).length())
+                .max((p0 - p2).length());
+            let n = cuts(longest, h);
+            (n, n)
+        }
+    }
+}
+
+fn patch_grid(patch: &Patch, h: f64, first_element: usize) -> PatchGrid {
+    let (nu, nv) = grid_cuts(patch, h);
+    match patch.shape {
         Shape::Quad => {
-            let nu = cuts((p1 - p0).length().max((p2 - p3).length()), h);
-            let nv = cuts((p3 - p0).length().max((p2 - p1).length()), h);
             let mut nodes = Vec::with_capacity((nu + 1) * (nv + 1));
             for j in 0..=nv {
                 for i in 0..=nu {
@@ -218,11 +323,8 @@ fn patch_grid(patch: &Patch, h: f64, first_element: usize) -> PatchGrid {
             }
         }
         Shape::Triangle => {
-            let longest = (p1 - p0)
-                .length()
-                .max((p2 - p1).length())
-                .max((p0 - p2).length());
-            let n = cuts(longest, h);
+            let n = nu;
+            debug_assert_eq!(nu, nv);
             let mut index = vec![vec![0u32; n + 1]; n + 1];
             let mut nodes = Vec::with_capacity((n + 1) * (n + 2) / 2);
             for j in 0..=n {
@@ -258,6 +360,16 @@ pub fn to_f32(points: &[DVec3]) -> Vec<Vec3> {
 mod tests {
     use super::*;
     use crate::scene::{InputTriangle, Material, Surface};
+
+    #[test]
+    fn human_bytes_picks_a_readable_unit() {
+        assert_eq!(human_bytes(3 << 20), "3.0 MiB");
+        assert_eq!(human_bytes(3 << 30), "3.00 GiB");
+        assert_eq!(human_bytes(1536 << 30), "1.50 TiB");
+        assert_eq!(human_bytes(5 << 50), "5.00 PiB");
+        assert_eq!(human_bytes(3 << 60), "3.00 EiB");
+        assert_eq!(human_bytes(u64::MAX), "more than 16 EiB");
+    }
 
     fn scene(tris: Vec<[[f64; 3]; 3]>) -> Scene {
         let input = tris
@@ -312,6 +424,21 @@ mod tests {
         // 2 × 1 quad at h = 0.3: 7 × 4 cells; the unit right triangle is cut
         // by its hypotenuse, √2 / 0.3 → 5 cuts, 5² cells.
         assert_eq!(m.elements.len(), 28 + 25);
+        assert_eq!(UniformMesh::element_count(&s, 0.3), 28 + 25);
+        // Far below the smallest size: every edge at its 10⁶ cuts, counted
+        // (not built) and refused by the budget with the flag named.
+        assert_eq!(
+            UniformMesh::element_count(&s, 1e-300),
+            2 * 1_000_000_000_000
+        );
+        let e = UniformMesh::within_budget(&s, 1e-300, 2 << 30, "", |n| n.saturating_mul(n))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--element-size") && e.contains("2000000000000 elements"),
+            "{e}"
+        );
+        assert!(e.contains("more than 16 EiB"), "{e}");
         let b: Vec<DVec3> = m
             .elements
             .iter()

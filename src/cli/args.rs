@@ -318,7 +318,10 @@ pub struct KernelArgs {
     pub no_hemicube_rotation: bool,
     /// Largest dense matrix (and direct-method factorisation) allowed, in
     /// GiB; for hierarchical, the estimated memory of the elements and
-    /// links, where refinement stops (the report says so).
+    /// links, where refinement stops (the report says so). Every size read
+    /// from the scene or the flags (triangles after instancing, textures,
+    /// classic elements, uniform output vertices) is checked against it
+    /// before it is allocated.
     #[arg(long, value_name = "GIB", default_value_t = 2.0)]
     pub memory_budget: f64,
 }

@@ -77,10 +77,11 @@ pub fn inapplicable(matches: &ArgMatches) -> Option<String> {
 pub fn run(args: FormFactorArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options()?;
+    let mut options = args.load.options()?;
     let settings = args
         .kernel
         .settings(args.method.kernel(), args.common.seed)?;
+    options.memory_budget = settings.memory_budget;
     let scene = super::load(&args.scene, &options, &progress)?;
     let element_size = match (args.element_size, args.method) {
         (Some(h), _) if h > 0.0 && h.is_finite() => h,
@@ -88,7 +89,13 @@ pub fn run(args: FormFactorArgs) -> Result<()> {
         (None, SurfaceMethod::Hemicube) => scene.diagonal() * pipeline::DEFAULT_ELEMENT_FRACTION,
         (None, _) => f64::INFINITY,
     };
-    let mesh = nusselt::classic::uniform::UniformMesh::new(&scene, element_size);
+    let mesh = nusselt::classic::uniform::UniformMesh::within_budget(
+        &scene,
+        element_size,
+        settings.memory_budget,
+        "with their dense matrix",
+        FormFactorMatrix::bytes_for_count,
+    )?;
     let bvh = TriangleBvh::of_scene(&scene);
     let (matrix, stats, errors) =
         FormFactorMatrix::assemble_with_errors(&mesh, &bvh, &settings, &progress)?;

@@ -256,11 +256,14 @@ pub fn run(args: SolveArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let start = Instant::now();
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options_with(&args.sky)?;
+    let mut options = args.load.options_with(&args.sky)?;
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }
     let settings = args.settings()?;
+    // The loader's sizes (triangles after instancing, textures) are
+    // checked against the same budget.
+    options.memory_budget = settings.matrix.memory_budget;
     let dir = args
         .output
         .clone()

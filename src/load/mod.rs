@@ -14,6 +14,13 @@
 //!   (`accessor::check`) before it is read, node hierarchies are walked
 //!   iteratively and each node at most once (cycles and shared children are
 //!   errors), and the total triangle count is capped ([`MAX_TRIANGLES`]).
+//!   Before any mesh is read, the triangles the node hierarchy instances are
+//!   counted from the accessors' declared counts and checked against that
+//!   cap and the memory budget ([`LOADED_TRIANGLE_BYTES`] each).
+//! - Textures are decoded once per distinct image content (entries that
+//!   share a file or bytes share one decode), each only after its header's
+//!   width × height has been checked against the memory budget, and kept
+//!   reduced (`texture`), so the textures held stay within the budget.
 //!   External URIs must name regular files (a device or FIFO would be read
 //!   without end), and data URIs must carry the MIME type of their role.
 //! - World-space positions lie within ±[`MAX_COORDINATE`] (the range the f32
@@ -39,6 +46,7 @@ use gltf::mesh::Mode;
 use gltf::{Document, Semantic};
 use rayon::prelude::*;
 
+use crate::classic::uniform::human_bytes;
 use crate::error::{Error, Result};
 use crate::scene::{
     Camera, EnvironmentMap, InputTriangle, LightKind, Lights, MAX_COORDINATE, Material,
@@ -49,6 +57,11 @@ use self::accessor::Expect;
 use self::texture::{Sampler, Texture, UvTransform};
 
 pub use crate::scene::MAX_TRIANGLES;
+
+/// Bytes a loaded triangle takes until the scene is built: the
+/// [`InputTriangle`] itself (about 190) and its share of the scene's
+/// patches, welding tables and occluder BVH; an estimate, rounded up.
+pub const LOADED_TRIANGLE_BYTES: u64 = 512;
 
 /// Extensions whose effect the diffuse model ignores, when the file uses them.
 const IGNORED_EXTENSIONS: &[&str] = &[
@@ -73,6 +86,10 @@ pub struct LoadOptions {
     pub max_reflectance: f64,
     /// The sky around the scene, if any (`--sky`).
     pub sky: Option<Arc<Sky>>,
+    /// Bytes the loader may allocate for sizes read from the file
+    /// (`--memory-budget`): the triangles after instancing and the
+    /// textures, each checked before it is allocated.
+    pub memory_budget: u64,
 }
 
 impl LoadOptions {
@@ -91,6 +108,7 @@ impl Default for LoadOptions {
         LoadOptions {
             max_reflectance: 0.999,
             sky: None,
+            memory_budget: crate::classic::matrix::DEFAULT_MEMORY_BUDGET,
         }
     }
 }
@@ -189,6 +207,8 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         surfaces: Vec::new(),
         cameras: Vec::new(),
         textures: HashMap::new(),
+        decoded: HashMap::new(),
+        texture_bytes: 0,
         world: vec![None; document.nodes().len()],
         punctual_lights: Vec::new(),
         warnings: Vec::new(),
@@ -532,6 +552,12 @@ struct Loader<'a> {
     cameras: Vec<Camera>,
     /// Decoded textures by image index.
     textures: HashMap<usize, Arc<Texture>>,
+    /// Decoded textures by encoded content: image entries that share a
+    /// file or bytes share one decode.
+    decoded: HashMap<Vec<u8>, Arc<Texture>>,
+    /// Bytes the decoded textures keep, all together, with their encoded
+    /// bytes (the keys of `decoded`).
+    texture_bytes: u64,
     /// World transform of each node reached, by node index.
     world: Vec<Option<DMat4>>,
     /// The KHR_lights_punctual lights the reached nodes place, in node
@@ -542,8 +568,59 @@ struct Loader<'a> {
     dropped_indices: usize,
 }
 
+/// The nodes reached from `roots`, depth-first with children in file
+/// order, each with its world transform; a node reached twice (a cycle or
+/// a shared child) or a transform that is not finite is an error.
+fn walk<'a>(
+    document: &'a Document,
+    roots: Vec<gltf::Node<'a>>,
+) -> Result<Vec<(gltf::Node<'a>, DMat4)>, String> {
+    let mut visited = vec![false; document.nodes().len()];
+    let mut order = Vec::new();
+    let mut stack: Vec<(gltf::Node<'_>, DMat4)> = roots
+        .into_iter()
+        .rev()
+        .map(|n| (n, DMat4::IDENTITY))
+        .collect();
+    while let Some((node, parent)) = stack.pop() {
+        let index = node.index();
+        if std::mem::replace(&mut visited[index], true) {
+            return Err(format!(
+                "node {} is reached twice: the node hierarchy has a cycle or a shared child",
+                node_label(&node)
+            ));
+        }
+        let world = parent * local_transform(&node)?;
+        if !world.is_finite() {
+            return Err(format!(
+                "node {}: the world transform is not finite",
+                node_label(&node)
+            ));
+        }
+        let children: Vec<_> = node.children().collect();
+        stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        order.push((node, world));
+    }
+    Ok(order)
+}
+
+/// Triangles a primitive declares, from its index (or position) accessor's
+/// count alone: an upper bound of what it yields.
+fn declared_triangles(primitive: &gltf::Primitive<'_>) -> u64 {
+    let vertices = match primitive.indices() {
+        Some(indices) => indices.count(),
+        None => primitive.get(&Semantic::Positions).map_or(0, |p| p.count()),
+    } as u64;
+    match primitive.mode() {
+        Mode::Triangles => vertices / 3,
+        Mode::TriangleStrip | Mode::TriangleFan => vertices.saturating_sub(2),
+        _ => 0,
+    }
+}
+
 impl Loader<'_> {
-    /// Walks the default scene depth-first, children in file order.
+    /// Walks the default scene depth-first, children in file order,
+    /// after checking the triangles it instances against the budgets.
     fn traverse(&mut self) -> Result<(), String> {
         let document = self.document;
         let roots: Vec<gltf::Node<'_>> = match document
@@ -566,27 +643,10 @@ impl Loader<'_> {
                 roots
             }
         };
-        let mut visited = vec![false; document.nodes().len()];
-        let mut stack: Vec<(gltf::Node<'_>, DMat4)> = roots
-            .into_iter()
-            .rev()
-            .map(|n| (n, DMat4::IDENTITY))
-            .collect();
-        while let Some((node, parent)) = stack.pop() {
+        let order = walk(document, roots)?;
+        self.check_triangle_budget(&order)?;
+        for (node, world) in order {
             let index = node.index();
-            if std::mem::replace(&mut visited[index], true) {
-                return Err(format!(
-                    "node {} is reached twice: the node hierarchy has a cycle or a shared child",
-                    node_label(&node)
-                ));
-            }
-            let world = parent * local_transform(&node)?;
-            if !world.is_finite() {
-                return Err(format!(
-                    "node {}: the world transform is not finite",
-                    node_label(&node)
-                ));
-            }
             self.world[index] = Some(world);
             if let Some(mesh) = node.mesh() {
                 self.add_mesh(&node, &mesh, &world)?;
@@ -597,8 +657,97 @@ impl Loader<'_> {
             if let Some(light) = self.punctual_light(index, &world)? {
                 self.punctual_lights.push(light);
             }
-            let children: Vec<_> = node.children().collect();
-            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        Ok(())
+    }
+
+    /// Counts the triangles the reached nodes instance, from the accessors'
+    /// declared counts (nothing is read), and refuses them when they pass
+    /// [`MAX_TRIANGLES`] or would need more than the memory budget at
+    /// [`LOADED_TRIANGLE_BYTES`] each; the error names the mesh that
+    /// contributes most. The counts are first checked against the data
+    /// (`accessor::check`), so a count beyond its buffer is refused as such.
+    fn check_triangle_budget(&self, order: &[(gltf::Node<'_>, DMat4)]) -> Result<(), String> {
+        let mut instances = vec![0u64; self.document.meshes().len()];
+        for (node, _) in order {
+            if let Some(mesh) = node.mesh() {
+                instances[mesh.index()] += 1;
+            }
+        }
+        let mut total = 0u64;
+        let mut largest: Option<(u64, gltf::Mesh<'_>, u64, u64)> = None;
+        for mesh in self.document.meshes() {
+            let k = instances[mesh.index()];
+            if k == 0 {
+                continue;
+            }
+            for p in mesh.primitives() {
+                self.check_counted_accessors(&p).map_err(|e| {
+                    format!("mesh {} primitive {}: {e}", mesh_label(&mesh), p.index())
+                })?;
+            }
+            let per = mesh
+                .primitives()
+                .map(|p| declared_triangles(&p))
+                .fold(0u64, u64::saturating_add);
+            let all = per.saturating_mul(k);
+            total = total.saturating_add(all);
+            if largest.as_ref().is_none_or(|l| all > l.0) {
+                largest = Some((all, mesh, per, k));
+            }
+        }
+        let need = total.saturating_mul(LOADED_TRIANGLE_BYTES);
+        let budget = self.options.memory_budget;
+        if total <= MAX_TRIANGLES as u64 && need <= budget {
+            return Ok(());
+        }
+        let most = largest.map_or_else(String::new, |(_, mesh, per, k)| {
+            format!(
+                ", most from mesh {} ({per} triangles × {k} nodes)",
+                mesh_label(&mesh)
+            )
+        });
+        Err(if total > MAX_TRIANGLES as u64 {
+            format!(
+                "the node hierarchy instances {total} triangles{most}, which need {} to load, \
+                 more than the limit of {MAX_TRIANGLES} triangles",
+                human_bytes(need)
+            )
+        } else {
+            format!(
+                "the node hierarchy instances {total} triangles{most}, which need {} to load, \
+                 over the memory budget of {} (raise --memory-budget)",
+                human_bytes(need),
+                human_bytes(budget)
+            )
+        })
+    }
+
+    /// The accessors [`declared_triangles`] counts (indices, else
+    /// positions) checked against the loaded data, as [`Self::add_primitive`]
+    /// checks them.
+    fn check_counted_accessors(&self, primitive: &gltf::Primitive<'_>) -> Result<(), String> {
+        if let Some(positions) = primitive.get(&Semantic::Positions) {
+            accessor::check(
+                &positions,
+                &Expect {
+                    role: "POSITION".into(),
+                    types: &[DataType::F32],
+                    dimensions: Dimensions::Vec3,
+                },
+                self.buffers,
+            )?;
+        }
+        if let Some(indices) = primitive.indices() {
+            accessor::check(
+                &indices,
+                &Expect {
+                    role: "indices".into(),
+                    types: &[DataType::U8, DataType::U16, DataType::U32],
+                    dimensions: Dimensions::Scalar,
+                },
+                self.buffers,
+            )?;
         }
         Ok(())
     }
@@ -794,16 +943,27 @@ impl Loader<'_> {
         ))
     }
 
-    /// The decoded texture of image `index`, decoding it on first use.
+    /// The decoded texture of image `index`, decoding it on first use of
+    /// its content; the decode is checked against the memory budget, less
+    /// what the textures decoded so far keep.
     fn texture(&mut self, index: usize) -> Result<Arc<Texture>, String> {
         if let Some(t) = self.textures.get(&index) {
             return Ok(t.clone());
         }
         let bytes = self.image_bytes(index)?;
-        let texture = Arc::new(
-            Texture::decode(&bytes)
-                .map_err(|e| format!("{}: cannot decode: {e}", self.image_label(index)))?,
-        );
+        let texture = match self.decoded.get(&bytes) {
+            Some(t) => t.clone(),
+            None => {
+                let texture = Arc::new(
+                    Texture::decode(&bytes, self.options.memory_budget, self.texture_bytes)
+                        .map_err(|e| format!("{}: cannot decode: {e}", self.image_label(index)))?,
+                );
+                // The encoded bytes stay too, as the key of the decode.
+                self.texture_bytes += texture.bytes() + bytes.len() as u64;
+                self.decoded.insert(bytes, texture.clone());
+                texture
+            }
+        };
         self.textures.insert(index, texture.clone());
         Ok(texture)
     }

@@ -5,8 +5,20 @@
 //! through a glTF sampler (wrap modes, nearest or bilinear), and the mean of
 //! a texture over a triangle given its texture coordinates.
 //!
+//! Memory: only the means over triangles are used, so an image of more than
+//! [`MAX_KEPT_TEXELS`] texels is kept box-filtered by the smallest whole
+//! factor that brings it within that count (12 MiB of f32 RGB). Decoding
+//! holds the image in its own pixel format (the header's width × height ×
+//! bytes per pixel) plus that kept grid, converted a strip of rows at a
+//! time; [`Texture::decode`] checks this against the memory budget from the
+//! header, before anything is decoded.
+//!
 //! Invariants:
 //! - Texels are linear (sRGB decoded) before any averaging; alpha is dropped.
+//! - An image within [`MAX_KEPT_TEXELS`] is kept texel for texel; a larger
+//!   one as the means of f × f blocks (the last row and column of blocks
+//!   averaging the texels they hold), so a triangle's mean is that of the
+//!   image up to detail finer than a block.
 //! - The mean over a triangle uses a stratified, deterministic set of sample
 //!   points: the triangle is cut into m² congruent sub-triangles, each
 //!   sampled once at a jittered point drawn from a generator with a fixed
@@ -34,6 +46,8 @@ use gltf::texture::{MagFilter, WrappingMode};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
+use crate::classic::uniform::human_bytes;
+
 /// Fewest splits per triangle edge: at least `MIN_SPLITS²` samples.
 const MIN_SPLITS: usize = 4;
 /// Most splits per triangle edge: at most `MAX_SPLITS²` samples.
@@ -44,6 +58,9 @@ const SPLITS_PER_TEXEL: f64 = 8.0;
 const MAX_TEXELS: u64 = 1 << 26;
 /// Largest allocation the image decoder may make, in bytes.
 const MAX_DECODE_BYTES: u64 = 1 << 30;
+/// Most texels a decoded texture keeps: larger images are box-filtered to
+/// within this.
+pub(super) const MAX_KEPT_TEXELS: usize = 1 << 20;
 /// Fixed seed of the jitter: means are deterministic.
 const JITTER_SEED: u64 = 0x6e75_7373_656c_7421;
 
@@ -101,8 +118,11 @@ pub(super) fn srgb_to_linear(c: f32) -> f32 {
 }
 
 impl Texture {
-    /// Decodes a PNG or JPEG and converts it to linear RGB.
-    pub fn decode(bytes: &[u8]) -> Result<Texture, String> {
+    /// Decodes a PNG or JPEG and converts it to linear RGB, reduced to at
+    /// most [`MAX_KEPT_TEXELS`]. The header's size is checked first: the
+    /// decoded image and the kept texels, with `in_use` bytes already
+    /// held, must fit `memory_budget`.
+    pub fn decode(bytes: &[u8], memory_budget: u64, in_use: u64) -> Result<Texture, String> {
         let reader = || {
             let mut reader = image::ImageReader::new(Cursor::new(bytes))
                 .with_guessed_format()
@@ -111,33 +131,85 @@ impl Texture {
                 return Err("not a PNG or JPEG image".to_string());
             }
             let mut limits = image::Limits::default();
-            limits.max_alloc = Some(MAX_DECODE_BYTES);
+            limits.max_alloc = Some(MAX_DECODE_BYTES.min(memory_budget));
             reader.limits(limits);
             Ok(reader)
         };
-        let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
+        let decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
+        let (width, height) = image::ImageDecoder::dimensions(&decoder);
+        let decoded = image::ImageDecoder::total_bytes(&decoder);
+        drop(decoder);
         if u64::from(width) * u64::from(height) > MAX_TEXELS {
             return Err(format!(
                 "{width}×{height} texels exceed the limit of {MAX_TEXELS}"
             ));
         }
+        let (w, h) = (width as usize, height as usize);
+        let (kw, kh, _) = reduction(w, h);
+        let need = decoded
+            .saturating_add(Self::bytes_of(kw * kh))
+            .saturating_add(in_use);
+        if need > memory_budget || decoded > MAX_DECODE_BYTES {
+            return Err(format!(
+                "{width}×{height} texels need {} to decode{}, over the memory budget of {} \
+                 (raise --memory-budget or use a smaller image)",
+                human_bytes(need),
+                match in_use {
+                    0 => String::new(),
+                    b => format!(
+                        " besides the {} the textures before it keep",
+                        human_bytes(b)
+                    ),
+                },
+                human_bytes(memory_budget.min(MAX_DECODE_BYTES))
+            ));
+        }
         let image = reader()?.decode().map_err(|e| e.to_string())?;
-        let rgb = image.to_rgb32f();
-        let (width, height) = (rgb.width() as usize, rgb.height() as usize);
-        if width == 0 || height == 0 {
+        Self::reduced(&image)
+    }
+
+    /// Bytes `texels` kept texels take.
+    fn bytes_of(texels: usize) -> u64 {
+        (texels as u64).saturating_mul(std::mem::size_of::<[f32; 3]>() as u64)
+    }
+
+    /// Bytes this texture keeps.
+    pub fn bytes(&self) -> u64 {
+        Self::bytes_of(self.texels.len())
+    }
+
+    /// The linear texels of `image`, box-filtered by [`reduction`]'s
+    /// factor, converted to f32 a strip of rows (one block high) at a time.
+    fn reduced(image: &image::DynamicImage) -> Result<Texture, String> {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        if w == 0 || h == 0 {
             return Err("image has no texels".into());
         }
-        let texels = rgb
-            .pixels()
-            .map(|p| p.0.map(|c| srgb_to_linear(c.clamp(0.0, 1.0))))
-            .collect();
+        let (width, height, f) = reduction(w, h);
+        let mut texels = Vec::with_capacity(width * height);
+        let mut sums = vec![DVec3::ZERO; width];
+        for ky in 0..height {
+            let y0 = ky * f;
+            let rows = f.min(h - y0);
+            let strip = image
+                .crop_imm(0, y0 as u32, w as u32, rows as u32)
+                .to_rgb32f();
+            sums.fill(DVec3::ZERO);
+            for (x, _, p) in strip.enumerate_pixels() {
+                let [r, g, b] = p.0.map(|c| srgb_to_linear(c.clamp(0.0, 1.0)));
+                sums[x as usize / f] += DVec3::new(r.into(), g.into(), b.into());
+            }
+            for (kx, sum) in sums.iter().enumerate() {
+                let n = (f.min(w - kx * f) * rows) as f64;
+                texels.push((*sum / n).as_vec3().to_array());
+            }
+        }
         Ok(Texture {
             width,
             height,
             texels,
         })
     }
-
     /// Builds a texture from linear texels (row-major, row 0 at v = 0).
     #[cfg(test)]
     pub fn from_linear(width: usize, height: usize, texels: Vec<[f32; 3]>) -> Texture {
@@ -210,6 +282,17 @@ impl Texture {
         }
         sum / (m * m) as f64
     }
+}
+
+/// The kept size of a `w` × `h` image and the box factor f that gives it:
+/// the smallest f ≥ 1 for which ⌈w/f⌉ · ⌈h/f⌉ ≤ [`MAX_KEPT_TEXELS`].
+fn reduction(w: usize, h: usize) -> (usize, usize, usize) {
+    let texels = (w as f64) * (h as f64);
+    let mut f = ((texels / MAX_KEPT_TEXELS as f64).sqrt().floor() as usize).max(1);
+    while w.div_ceil(f) * h.div_ceil(f) > MAX_KEPT_TEXELS {
+        f += 1;
+    }
+    (w.div_ceil(f), h.div_ceil(f), f)
 }
 
 /// A uniform point (r1, r2) of the unit right triangle r1 + r2 ≤ 1 from two
@@ -305,6 +388,53 @@ mod tests {
             &LINEAR,
         );
         assert!((d.x - 0.5).abs() < 0.03, "{d}");
+    }
+
+    #[test]
+    fn large_images_are_kept_box_filtered_within_the_cap() {
+        assert_eq!(reduction(1024, 1024), (1024, 1024, 1));
+        assert_eq!(reduction(8192, 8192), (1024, 1024, 8));
+        let (kw, kh, f) = reduction(3000, 1001);
+        assert!(kw * kh <= MAX_KEPT_TEXELS && f == 2, "{kw} {kh} {f}");
+        assert_eq!(reduction(1 << 22, 1), (1 << 20, 1, 4));
+        // Black for x < 1025, white beyond, 2049 × 1024: kept at f = 2
+        // (1025 × 512), each block the mean of its texels (block 512 half
+        // black, the last column of blocks one column of white), and the
+        // mean over an area still that of the full image: the triangle
+        // u + v ≤ 2 (repeat wrap) covers one whole tile, half white, and
+        // the lower-left halves of two more, a quarter white each: 3/8.
+        let img = image::RgbImage::from_fn(2049, 1024, |x, _| {
+            image::Rgb(if x < 1025 { [0; 3] } else { [255; 3] })
+        });
+        let t = Texture::reduced(&image::DynamicImage::ImageRgb8(img)).unwrap();
+        assert_eq!((t.width, t.height), (1025, 512));
+        assert_eq!(t.bytes(), 1025 * 512 * 12);
+        assert_eq!(t.texel(511, 0).x, 0.0);
+        assert!((t.texel(512, 0).x - 0.5).abs() < 1e-6);
+        assert!((t.texel(1024, 511).x - 1.0).abs() < 1e-6);
+        let whole = t.triangle_mean(
+            [DVec2::ZERO, DVec2::new(2.0, 0.0), DVec2::new(0.0, 2.0)],
+            &LINEAR,
+        );
+        assert!((whole.x - 0.375).abs() < 0.01, "{whole}");
+    }
+
+    #[test]
+    fn decode_checks_the_header_against_the_budget() {
+        let mut png = Vec::new();
+        image::DynamicImage::ImageLuma8(image::GrayImage::new(512, 512))
+            .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        // 256 KiB decoded and 3 MiB kept: fits 4 MiB, not 3 MiB, nor 4 MiB
+        // with 1 MiB already held.
+        assert!(Texture::decode(&png, 4 << 20, 0).is_ok());
+        let e = Texture::decode(&png, 3 << 20, 0).unwrap_err();
+        assert!(
+            e.contains("512×512") && e.contains("budget of 3.0 MiB"),
+            "{e}"
+        );
+        let e = Texture::decode(&png, 4 << 20, 1 << 20).unwrap_err();
+        assert!(e.contains("besides the 1.0 MiB"), "{e}");
     }
 
     #[test]

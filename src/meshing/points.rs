@@ -8,8 +8,10 @@
 //!
 //! Invariants: one [`PatchInput`] per patch, in patch order; `uniform`
 //! points lie at least a quarter spacing inside their patch or on its
-//! edges; a snapped corner lies on a segment of its own patch (it moves
-//! only when it was within [`tolerance::SNAP`] of the scene diagonal).
+//! edges, and are at most [`uniform_point_bound`] (counted without
+//! allocating, so the budget is checked before the grid is built); a
+//! snapped corner lies on a segment of its own patch (it moves only when
+//! it was within [`tolerance::SNAP`] of the scene diagonal).
 
 use glam::DVec3;
 
@@ -35,7 +37,7 @@ pub(super) fn patch_inputs(
     let mut inputs = match settings.mode {
         MeshMode::Uniform => {
             let target = settings.uniform_vertices.unwrap_or(h.leaf_count()).max(1);
-            uniform_points(scene, (scene.total_area() / target as f64).sqrt())
+            uniform_points(scene, uniform_spacing(scene, target))
         }
         MeshMode::Quadtree | MeshMode::Discontinuity => leaf_corners(h, np),
     };
@@ -75,6 +77,43 @@ fn leaf_corners(h: &Hierarchy, np: usize) -> Vec<PatchInput> {
             .extend_from_slice(e.vertices());
     }
     inputs
+}
+
+/// The grid spacing of `uniform` for about `target` vertices.
+fn uniform_spacing(scene: &Scene, target: usize) -> f64 {
+    (scene.total_area() / target.max(1) as f64).sqrt()
+}
+
+/// At most how many points [`uniform_points`] makes for about `target`
+/// vertices (saturating; nothing is allocated): per patch, the points along
+/// its edges and every node of the grid over its bounding rectangle.
+pub(super) fn uniform_point_bound(scene: &Scene, target: usize) -> u64 {
+    let spacing = uniform_spacing(scene, target);
+    // `as u64` saturates (and maps NaN to 0); +1 per axis and edge covers
+    // the rounding of ceil and floor.
+    let count = |x: f64| (x.max(0.0) + 1.0) as u64;
+    scene
+        .patches
+        .iter()
+        .map(|patch| {
+            let vs = patch.vertices();
+            let edges = (0..vs.len())
+                .map(|i| count((vs[(i + 1) % vs.len()] - vs[i]).length() / spacing))
+                .fold(0u64, u64::saturating_add);
+            let u = (vs[1] - vs[0]).normalize_or_zero();
+            let v = patch.normal.cross(u);
+            let extent = |axis: DVec3| {
+                let (lo, hi) = vs
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &p| {
+                        let x = (p - vs[0]).dot(axis);
+                        (a.min(x), b.max(x))
+                    });
+                count((hi - lo) / spacing)
+            };
+            edges.saturating_add(extent(u).saturating_mul(extent(v)))
+        })
+        .fold(0u64, u64::saturating_add)
 }
 
 /// A regular grid of spacing `spacing` in each patch's plane, keeping the

@@ -48,7 +48,26 @@ pub(super) fn solve(
 
     let t = Instant::now();
     phase.message("uniform mesh");
-    let mesh = UniformMesh::new(scene, element_size);
+    // Counted and checked before anything is allocated: the elements, the
+    // f32 matrix and, for the direct method, its f64 factorisation.
+    let direct = method == ClassicMethod::Direct;
+    let mesh = UniformMesh::within_budget(
+        scene,
+        element_size,
+        settings.matrix.memory_budget,
+        if direct {
+            "with their dense matrix and its factorisation"
+        } else {
+            "with their dense matrix"
+        },
+        |n| {
+            let matrix = FormFactorMatrix::bytes_for_count(n);
+            match direct {
+                true => matrix.saturating_mul(3),
+                false => matrix,
+            }
+        },
+    )?;
     report.times.mesh = Some(secs(t));
     drop(phase);
 

@@ -33,6 +33,10 @@ pub(super) fn solve(
     let start = Instant::now();
     let mut report = new_report(scene, settings);
     let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+    // Before any work: a uniform output mesh of a given size must fit.
+    settings
+        .mesh
+        .check_budget(scene, settings.hierarchical.memory_budget)?;
 
     let t = Instant::now();
     let phase = progress.spinner("occluders");
