@@ -82,11 +82,10 @@ impl BudgetHit {
                 )
             }
             Budget::Time => {
-                let secs = |ms: u64| format!("{:.1} s", ms as f64 / 1000.0);
                 return format!(
-                    "hierarchical: refinement stopped after {}, its share ({:.0} %) of \
-                     --time-budget; raise --time-budget for a finer solution",
-                    secs(self.reached),
+                    "hierarchical: refinement stopped when its share of --time-budget was spent \
+                     ({:.0} % of it, counted from the run's start); raise --time-budget for a \
+                     finer solution",
                     100.0 * REFINE_SHARE
                 );
             }
