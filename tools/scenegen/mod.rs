@@ -14,6 +14,7 @@
 pub mod cornell;
 pub mod courtyard;
 pub mod encode;
+pub mod fan;
 pub mod goral;
 pub mod hard;
 pub mod interior;
@@ -114,6 +115,14 @@ pub fn write_scale(dir: &Path, target: usize) -> Result<(Vec<PathBuf>, usize)> {
     let mut files = Vec::new();
     push_scene(&mut files, "", &scene)?;
     Ok((write_files(dir, files)?, model::triangle_count(&scene)))
+}
+
+/// Writes the fan benchmark scene of `n` slivers into `dir` (created if
+/// missing), as `fan-<n>.gltf` and `.bin`, and returns the paths written.
+pub fn write_fan(dir: &Path, n: usize) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    push_scene(&mut files, "", &fan::scene(n))?;
+    write_files(dir, files)
 }
 
 /// Writes `files` (path relative to `dir`, bytes) into `dir`.
