@@ -87,8 +87,8 @@ const SLIVER_RATIO: f32 = 8.0;
 const SLIVER_BUDGET: usize = 16;
 
 /// And to at most this many references in all (about 80 bytes each while
-/// building).
-const MAX_REFERENCES: usize = 1 << 23;
+/// building; the full reinsertion pass over them costs seconds a million).
+const MAX_REFERENCES: usize = 1 << 20;
 
 /// The wide BVH of `tris`, built as obvhs's slowest preset builds it (full
 /// reinsertion, its pre-splits of large triangles: 2.2× the rays per second

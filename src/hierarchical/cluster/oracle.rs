@@ -10,10 +10,12 @@
 
 use std::f64::consts::PI;
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::link::{CLUSTER_RAYS, ClusterLink, Evaluation, Sampled};
 use super::transport::exposed;
+use super::tree::same_plane;
 use super::{Clusters, Node};
 use crate::hierarchical::hierarchy::Element;
 use crate::hierarchical::link::Evaluator;
@@ -122,21 +124,29 @@ impl Clusters {
             seed,
         } = *at;
         let t = &self.tree;
+        // Patches in one plane facing one way exchange no light: a flat
+        // cluster has no self-link, and two nodes in one such plane no link
+        // (a fan of n slivers meeting at a point otherwise opened every
+        // pair of its touching clusters, O(n²)).
+        let (pr, ps) = (t.plane(scene, r), t.plane(scene, s));
+        let coplanar = matches!((pr, ps), (Some(a), Some(b)) if same_plane(a, b, scene.diagonal()));
         match (r, s) {
             (Node::Patch(a), Node::Patch(b)) if a == b => return (Step::Drop, 0),
+            (Node::Cluster(a), Node::Cluster(b)) if a == b && pr.is_some() => {
+                return (Step::Drop, 0);
+            }
             (Node::Cluster(a), Node::Cluster(b)) if a == b => return (Step::SelfLink(a), 0),
             (Node::Patch(_), Node::Patch(_)) => return (Step::Patches, 0),
+            _ if coplanar => return (Step::Drop, 0),
             _ => {}
         }
-        // Back to back: nothing of the other lies in front of a patch.
-        let in_front = |p: Node, other: Node| match p {
-            Node::Patch(k) => {
-                let patch = &scene.patches[k as usize];
-                (t.centre(other) - patch.corners[0]).dot(patch.normal) > -t.radius(other)
-            }
-            Node::Cluster(_) => true,
+        // Back to back: nothing of the other lies in front of a patch or
+        // a flat cluster.
+        let in_front = |plane: Option<(DVec3, f64)>, other: Node| match plane {
+            Some((n, d)) => t.centre(other).dot(n) - d > -t.radius(other),
+            None => true,
         };
-        if !in_front(r, s) || !in_front(s, r) {
+        if !in_front(pr, s) || !in_front(ps, r) {
             return (Step::Drop, 0);
         }
         let open = if t.radius(r) >= t.radius(s) && matches!(r, Node::Cluster(_))

@@ -32,6 +32,9 @@ pub struct Cluster {
     /// Σ A · normal_lobes(n) over the patches: the area seen from
     /// direction −d is about `projected · lobes(d)`.
     pub projected: Lobes,
+    /// The plane (unit normal n, offset d: n · x = d) every patch lies in
+    /// facing n, when they all share one ([`ClusterTree::plane`]).
+    pub plane: Option<(DVec3, f64)>,
     /// The two children.
     pub kids: [Node; 2],
     /// The patches are `order[first..first + count]`.
@@ -188,6 +191,7 @@ impl ClusterTree {
             area: 0.0,
             reflectance: 0.0,
             projected: [0.0; 6],
+            plane: None,
             kids: [Node::Patch(0); 2],
             first: self.order.len() as u32,
             count: 0,
@@ -233,12 +237,17 @@ impl ClusterTree {
             .map(|&k| centre.distance(self.centre(k)) + self.radius(k))
             .fold(0.0, f64::max);
         let first = self.clusters[c as usize].first;
+        let plane = match (self.plane(scene, kids[0]), self.plane(scene, kids[1])) {
+            (Some(a), Some(b)) if same_plane(a, b, scene.diagonal()) => Some(a),
+            _ => None,
+        };
         self.clusters[c as usize] = Cluster {
             centre,
             radius,
             area,
             reflectance,
             projected,
+            plane,
             kids,
             first,
             count: self.order.len() as u32 - first,
@@ -250,6 +259,18 @@ impl ClusterTree {
         match n {
             Node::Patch(p) => self.patch_centre[p as usize],
             Node::Cluster(c) => self.clusters[c as usize].centre,
+        }
+    }
+
+    /// The plane of a node's patches, facing their normal, when they share
+    /// one: a patch's own, a cluster's [`Cluster::plane`].
+    pub fn plane(&self, scene: &Scene, n: Node) -> Option<(DVec3, f64)> {
+        match n {
+            Node::Patch(p) => {
+                let patch = &scene.patches[p as usize];
+                Some((patch.normal, patch.normal.dot(patch.corners[0])))
+            }
+            Node::Cluster(c) => self.clusters[c as usize].plane,
         }
     }
 
@@ -379,4 +400,10 @@ impl ClusterTree {
             + (self.cumulative_area.capacity() + self.patch_radius.capacity()) * size_of::<f64>()
             + self.patch_centre.capacity() * size_of::<DVec3>()
     }
+}
+
+/// Two planes (unit normal, offset) are one, facing the same way, to
+/// within 10⁻⁶ rad and 10⁻⁷ of the scene's `diagonal`.
+pub fn same_plane(a: (DVec3, f64), b: (DVec3, f64), diagonal: f64) -> bool {
+    a.0.dot(b.0) >= 1e-6f64.cos() && (a.1 - b.1).abs() <= 1e-7 * diagonal
 }
