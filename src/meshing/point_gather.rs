@@ -13,7 +13,8 @@
 //!
 //! Invariants: a value depends only on the solution, the point, the seed
 //! and the leaf (rays are seeded per leaf and source), never on the thread
-//! count or the order of evaluation; values are finite and, from
+//! count or the order of evaluation (except which points a spent time
+//! budget turns into leaf values); values are finite and, from
 //! [`PointEvaluator`], non-negative.
 
 use std::sync::atomic::{AtomicUsize, Ordering};

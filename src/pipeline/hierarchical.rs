@@ -115,6 +115,8 @@ pub(super) fn solve(
         output_triangles: out.triangles.len(),
         ..solution_counts(scene, &solution)
     };
+    // The report shows the budget asked for, not refinement's share.
+    hs.time_budget = budget;
     report.settings = settings_json(settings, &hs, &solution, &view);
     report.estimated_error = crate::meshing::seams::seam_steps(scene, &out);
     finish(

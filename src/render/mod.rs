@@ -19,7 +19,8 @@
 //! `edge_samples_per_pixel` (a finer grid, in place of the first) when it
 //! is an edge pixel; sample positions depend only on (seed, pixel), and
 //! the edge test only on the first pass's image, so images are identical
-//! for any thread count.
+//! for any thread count (under a time budget, [`render_until`], which
+//! rows are cut depends on the clock).
 
 pub mod frame;
 pub mod view;
