@@ -56,20 +56,27 @@ impl Context<'_> {
             lo: p[0].min(p[1]).min(p[2]),
             hi: p[0].max(p[1]).max(p[2]),
         };
-        for (r, rec) in self.receivers.iter().enumerate() {
-            if !bounds.overlaps(&rec.bounds) {
-                continue;
-            }
-            let d = p.map(|x| rec.distance(x));
+        let mut candidates = Vec::new();
+        let straddles = |d: [f64; 3], slack: f64| {
             let (lo, hi) = (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]));
-            if !(lo < -tol_c && hi > tol_c) {
+            lo < -tol_c + slack && hi > tol_c - slack
+        };
+        self.index.candidates(
+            &self.receivers,
+            &bounds,
+            |g| straddles(p.map(|x| g.distance(x)), g.slack),
+            &mut candidates,
+        );
+        for r in candidates {
+            let rec = &self.receivers[r as usize];
+            if !straddles(p.map(|x| rec.distance(x)), 0.0) {
                 continue;
             }
             let Some((a, b)) = plane_chord(&p, rec.normal, rec.normal.dot(rec.center), tol_c)
             else {
                 continue;
             };
-            if let Some(s) = self.contact_segment(r as u32, a, b) {
+            if let Some(s) = self.contact_segment(r, a, b) {
                 out.push(s);
             }
         }
@@ -87,11 +94,16 @@ impl Context<'_> {
             lo: pa.min(pb),
             hi: pa.max(pb),
         };
-        for (r, rec) in self.receivers.iter().enumerate() {
-            if !edge_bounds.overlaps(&rec.bounds) {
-                continue;
-            }
-            if let Some(s) = self.contact(e, r as u32) {
+        let tol_c = CONTACT_TOL * self.diagonal;
+        let mut candidates = Vec::new();
+        self.index.candidates(
+            &self.receivers,
+            &edge_bounds,
+            |g| g.distance(pa).abs() <= tol_c + g.slack && g.distance(pb).abs() <= tol_c + g.slack,
+            &mut candidates,
+        );
+        for r in candidates {
+            if let Some(s) = self.contact(e, r) {
                 out.push(s);
             }
         }

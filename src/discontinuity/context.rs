@@ -15,6 +15,7 @@ use glam::DVec3;
 use super::clip::Bounds;
 use super::luminaires::{self, Luminaire};
 use super::occluders::Occluders;
+use super::planes::ReceiverIndex;
 use super::receivers::Receiver;
 use super::{CONTACT_TOL, DiscontinuitySettings, PLANE_TOL};
 use crate::formfactor::form_factor_point_polygon;
@@ -33,6 +34,8 @@ pub(super) struct Context<'a> {
     pub(super) occluders: Occluders,
     /// One per scene patch, in patch order.
     pub(super) receivers: Vec<Receiver>,
+    /// The receivers grouped by plane, for the contact searches.
+    pub(super) index: ReceiverIndex,
     /// The significant luminaires, ordered by lowest patch.
     pub(super) luminaires: Vec<Luminaire>,
     /// Scalar mean exitance over all emitting area.
@@ -59,6 +62,7 @@ impl<'a> Context<'a> {
             .iter()
             .map(|p| Receiver::new(p, pad))
             .collect();
+        let index = ReceiverIndex::new(&receivers, &bounds, diagonal);
         let mean_exitance = luminaires::mean_exitance(scene);
         let luminaires =
             luminaires::significant(scene, diagonal, settings.min_emitter_fraction, &receivers);
@@ -70,6 +74,7 @@ impl<'a> Context<'a> {
             bounds,
             occluders,
             receivers,
+            index,
             luminaires,
             mean_exitance,
         }

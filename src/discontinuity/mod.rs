@@ -12,7 +12,7 @@
 //! The steps, one submodule each (read in this order):
 //! 1. `context`: the read-only state of one run, built once: the welded
 //!    occluder edge graph (`occluders`), the receivers projected onto their
-//!    planes (`receivers`) and the significant luminaires, emitter patches
+//!    planes (`receivers`) and grouped by plane for searching (`planes`), and the significant luminaires, emitter patches
 //!    merged into convex polygons (`luminaires`).
 //! 2. `contacts`: D0, occluder edges resting on a receiver and occluders
 //!    passing through one.
@@ -55,6 +55,7 @@ mod context;
 mod luminaires;
 mod merge;
 mod occluders;
+mod planes;
 mod receivers;
 mod silhouettes;
 mod trace;

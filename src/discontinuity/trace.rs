@@ -6,10 +6,10 @@
 //! constants.
 //!
 //! Approximations (documented, deliberate):
-//! - Receivers are found by a linear scan of the patches facing the
-//!   luminaire, culled by the wedge's box within the scene: cost
-//!   O(wedges × receivers), about 0.2 s for the 5,902-triangle three-room
-//!   scene on 2 cores.
+//! - Receivers are found in the plane index (`planes`) by the wedge's box
+//!   within the scene, whole planes skipped when the occluder feature lies
+//!   in them or the light is behind them; a wedge whose box spans the
+//!   scene still visits every receiver of the planes it may reach.
 //! - Visibility is ray-cast at a handful of points along the line (source →
 //!   occluder feature → receiver point), with bisection at changes; an
 //!   occluded stretch shorter than the sample spacing can be missed.
@@ -25,6 +25,7 @@ use super::Segment;
 use super::clip::{clip_segment, plane_chord};
 use super::context::Context;
 use super::luminaires::Luminaire;
+use super::planes::GroupPlane;
 use super::receivers::Receiver;
 use super::wedges::{Traced, Wedge};
 
@@ -43,9 +44,21 @@ impl Context<'_> {
     /// and the rays cast to `traced`.
     pub(super) fn trace(&self, lum: &Luminaire, wedge: &Wedge, traced: &mut Traced) {
         let bounds = wedge.bounds(&self.bounds);
-        for &r in &lum.receivers {
-            let rec = &self.receivers[r as usize];
-            if bounds.overlaps(&rec.bounds) {
+        let tol = self.tol();
+        // `lit_through`, widened by a group's slack: true for a group when
+        // it may be true for one of its members.
+        let may_be_lit = |g: &GroupPlane| {
+            let (t, s) = (tol - g.slack, g.slack);
+            let base = wedge.base.map(|p| g.distance(p));
+            base.iter().any(|d| d.abs() > t)
+                && base.iter().fold(f64::MIN, |m, &d| m.max(d)) > tol - s
+                && wedge.source.iter().any(|&p| g.distance(p) > tol - s)
+        };
+        let mut candidates = Vec::new();
+        self.index
+            .candidates(&self.receivers, &bounds, may_be_lit, &mut candidates);
+        for r in candidates {
+            if lum.receivers.binary_search(&r).is_ok() {
                 self.trace_onto(lum, wedge, r, traced);
             }
         }

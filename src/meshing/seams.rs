@@ -10,7 +10,8 @@
 //! Owns: [`SeamSteps`] and [`seam_steps`]. Invariants: only pairs of
 //! non-emitting patches whose normals agree (one plane, one side) are
 //! compared, by irradiance (B / ρ), so that a change of paint along an edge
-//! is not counted as an error; the figures do not depend on vertex order.
+//! is not counted as an error; each vertex meets at most [`PARTNERS`] others
+//! at its point, so the work is linear in the vertices.
 
 use std::collections::HashMap;
 
@@ -23,6 +24,11 @@ use crate::scene::Scene;
 const SAME_PLANE: f32 = 0.9999;
 /// Reflectance channels below this are left out of a vertex's irradiance.
 const MIN_REFLECTANCE: f64 = 0.02;
+/// Each vertex is compared with at most this many of the vertices after it
+/// at its point, so that a point many patches share (a fan's centre) costs
+/// linear, not quadratic, work; a grid's corner (four patches) still gets
+/// all its pairs.
+const PARTNERS: usize = 4;
 /// Differences are relative to max(the pair's mean, this fraction of the
 /// mean irradiance of all the pairs), so that noise in the dark does not
 /// dominate.
@@ -64,10 +70,14 @@ pub fn seam_steps(scene: &Scene, mesh: &OutputMesh) -> Option<SeamSteps> {
             .or_default()
             .push(v);
     }
+    // Groups in vertex order, so that the sums below do not depend on the
+    // hash map's order.
+    let mut groups: Vec<Vec<usize>> = at.into_values().filter(|g| g.len() > 1).collect();
+    groups.sort_unstable_by_key(|g| g[0]);
     let mut pairs: Vec<(f64, f64)> = Vec::new();
-    for group in at.values().filter(|g| g.len() > 1) {
+    for group in &groups {
         for (i, &a) in group.iter().enumerate() {
-            for &b in &group[i + 1..] {
+            for &b in group.iter().skip(i + 1).take(PARTNERS) {
                 // Parallel normals through a shared point: one plane.
                 if mesh.patch[a] == mesh.patch[b]
                     || mesh.normals[a].dot(mesh.normals[b]) < SAME_PLANE

@@ -16,13 +16,18 @@
 
 use std::collections::HashMap;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
+use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2, ray::Ray};
 use rayon::prelude::*;
 
 use super::frame::LocalPatch;
-use super::grid::{EdgeRef, Grid3, edge_grid};
+use super::grid::{EdgeRef, Grid3};
 use super::{CORNER, ON_EDGE};
 use crate::util::union_find::UnionFind;
+
+/// Relative slack of the f32 search in [`near_pairs`] (of coordinates and
+/// of the edge parameter): far above f32 rounding, far below any tolerance.
+const SEARCH_SLACK: f64 = 1e-5;
 
 /// Welds points closer than the smaller of their radii, or [`CORNER`] times
 /// that when one of them is a corner (union-find, the smallest index
@@ -62,6 +67,51 @@ fn weld(points: &[DVec3], radius: &[f64], owner: &[Option<u32>]) -> Vec<u32> {
         grid.insert_box(p, p, i as u32);
     }
     (0..n).map(|i| groups.find(i) as u32).collect()
+}
+
+/// Every (point, edge) pair, sorted, where the point may lie within `r`
+/// of the edge: a superset of the pairs that do (boxes padded for the f32
+/// search). The search runs from the edges through a tree over the points,
+/// so a point many edges meet (a fan's centre) costs one entry per edge,
+/// and a long edge among many (a fan's slivers) only the points beside it:
+/// the work is about (points + edges) log points plus the pairs found.
+fn near_pairs(points: &[DVec3], edges: &[EdgeRef], r: f64, diagonal: f64) -> Vec<(u32, u32)> {
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let boxes: Vec<Aabb> = points
+        .iter()
+        .map(|p| {
+            let pad = DVec3::splat(r + SEARCH_SLACK * (p.abs().max_element() + diagonal));
+            Aabb::new(
+                Vec3A::from((*p - pad).as_vec3()),
+                Vec3A::from((*p + pad).as_vec3()),
+            )
+        })
+        .collect();
+    let mut time = std::time::Duration::ZERO;
+    let tree = build_bvh2(&boxes, BvhBuildParams::fast_build(), &mut time);
+    let mut pairs: Vec<(u32, u32)> = edges
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(e, edge)| {
+            let (a, b) = (edge.2, edge.3);
+            let ray = Ray::new(
+                Vec3A::from(a.as_vec3()),
+                Vec3A::from((b - a).as_vec3()),
+                -SEARCH_SLACK as f32,
+                1.0 + SEARCH_SLACK as f32,
+            );
+            let mut found = Vec::new();
+            tree.ray_traverse_anyhit(ray, |_, id| {
+                found.push((tree.primitive_indices[id], e as u32));
+            });
+            found
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    pairs
 }
 
 /// The shared boundary points: canonical positions, and for every patch
@@ -205,25 +255,28 @@ impl Canonical {
         edges: &[EdgeRef],
         diagonal: f64,
     ) -> Vec<Vec<(f64, u32)>> {
-        let grid = edge_grid(edges, diagonal);
         let r_max = locals
             .iter()
             .map(|l| ON_EDGE * l.shape.eps)
             .fold(0.0, f64::max);
-        let hits: Vec<Vec<(u32, f64)>> = (0..self.points.len())
+        // (point, edge) pairs by point, each point's edges ascending.
+        let near = near_pairs(&self.points, edges, r_max, diagonal);
+        let hits: Vec<(u32, Vec<(u32, f64)>)> = near
+            .chunk_by(|x, y| x.0 == y.0)
+            .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|i| {
-                let mut near = Vec::new();
-                grid.query(self.points[i], r_max, &mut near);
+            .map(|run| {
+                let i = run[0].0;
+                let x = self.points[i as usize];
                 // Near a corner a point can be close to both edges' lines: it
                 // goes on the nearer one only.
                 let mut found: Vec<(u32, f64, f64)> = Vec::new();
-                for &e in &near {
+                for &(_, e) in run {
                     let edge = &edges[e as usize];
-                    if self.corners[edge.0 as usize].contains(&(i as u32)) {
+                    if self.corners[edge.0 as usize].contains(&i) {
                         continue;
                     }
-                    let Some((t, off)) = on_edge(locals, edge, self.points[i], Reach::Near) else {
+                    let Some((t, off)) = on_edge(locals, edge, x, Reach::Near) else {
                         continue;
                     };
                     match found.iter_mut().find(|f| edges[f.0 as usize].0 == edge.0) {
@@ -232,16 +285,13 @@ impl Canonical {
                         None => found.push((e, t, off)),
                     }
                 }
-                found
-                    .into_iter()
-                    .map(|(e, t, _)| (e, t))
-                    .collect::<Vec<_>>()
+                (i, found.into_iter().map(|(e, t, _)| (e, t)).collect())
             })
             .collect();
         let mut lists: Vec<Vec<(f64, u32)>> = vec![Vec::new(); edges.len()];
-        for (i, h) in hits.iter().enumerate() {
+        for (i, h) in &hits {
             for &(e, t) in h {
-                lists[e as usize].push((t, i as u32));
+                lists[e as usize].push((t, *i));
             }
         }
         lists
