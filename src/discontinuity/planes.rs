@@ -118,8 +118,13 @@ impl ReceiverIndex {
                 .fold(0.0, f64::max);
             let mut members: Vec<u32> = run.iter().map(|&(_, r)| r).collect();
             members.sort_unstable();
-            let tree = (members.len() > SCAN)
-                .then(|| tree_over(members.iter().map(|&r| outer_box(&receivers[r as usize].bounds))));
+            let tree = (members.len() > SCAN).then(|| {
+                tree_over(
+                    members
+                        .iter()
+                        .map(|&r| outer_box(&receivers[r as usize].bounds)),
+                )
+            });
             groups.push(Group {
                 plane: GroupPlane {
                     normal,

@@ -171,6 +171,11 @@ pub fn solve_hierarchical_guided(
         passes => progress.phase("correction", u64::from(passes)),
     };
     for pass in 0..settings.correction_passes {
+        // A pass costs as much as a round of links: none begins once the
+        // time budget is spent (the report warns).
+        if solver.out_of_time() {
+            break;
+        }
         phase.message(format!("pass {}", pass + 1));
         let t = Instant::now();
         let residual = solver.correct(&rounds.irradiance, settings.correction_rays, pass);

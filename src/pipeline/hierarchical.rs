@@ -181,6 +181,15 @@ fn report_solution(
     if let Some(hit) = &solution.budget {
         report.warnings.push(hit.message());
     }
+    let done = solution.correction_passes.len();
+    if done < hs.correction_passes as usize {
+        report.warnings.push(format!(
+            "hierarchical: {done} of {} correction passes ran: the time budget's share ({:.0} %) \
+             for the solve was spent",
+            hs.correction_passes,
+            100.0 * REFINE_SHARE
+        ));
+    }
     report.budget = solution.budget;
     if let Some(c) = &solution.coarsened {
         report.warnings.push(c.message());
