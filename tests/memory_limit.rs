@@ -539,3 +539,114 @@ fn image_file_kept_for_the_bake_was_read_whole_unchecked() {
         ],
     );
 }
+
+#[test]
+fn render_size_was_not_checked_against_the_memory_budget() {
+    // 16384² passes the side cap; its buffers (128 bytes a pixel) do not
+    // fit the default budget, and are refused before the solve.
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = scene_arg("cornell-box.gltf");
+    let solve = |extra: &[&str]| {
+        let mut args = vec!["solve", &cornell, "-o", "out", "-q"];
+        args.extend_from_slice(extra);
+        nusselt_limited(&args, dir.path())
+    };
+    let out = solve(&["--width", "16384", "--height", "16384"]);
+    assert_refused(
+        &out,
+        &[
+            "the 16384 × 16384 render (--width 16384 --height 16384) needs 32.00 GiB, \
+             over the memory budget of 2.00 GiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+    // The classic methods check it too, after their own budget.
+    let out = solve(&["--method", "jacobi", "--width", "16384"]);
+    assert_refused(
+        &out,
+        &["--width 16384 and the camera's aspect ratio) needs 32.00 GiB"],
+    );
+    // Past the side cap: refused by it.
+    let out = solve(&["--width", "1000000", "--height", "1000000"]);
+    assert_refused(&out, &["each side must be between 1 and 16384"]);
+    // Snapshots hold a frame each, lightmaps their atlases.
+    let out = solve(&[
+        "--width",
+        "2048",
+        "--height",
+        "2048",
+        "--snapshots",
+        &(1..=100)
+            .map(|k| k.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+    ]);
+    assert_refused(
+        &out,
+        &[
+            "the 2048 × 2048 render (--width 2048 --height 2048) needs 512.0 MiB, \
+             its 100 snapshots (--snapshots) 4.69 GiB: 5.19 GiB in all, \
+             over the memory budget of 2.00 GiB",
+        ],
+    );
+    let out = solve(&["--lightmap", "16384"]);
+    assert_refused(
+        &out,
+        &["the lightmaps (--lightmap 16384) 24.00 GiB: 24.03 GiB in all"],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}
+
+#[test]
+fn render_and_reference_sizes_were_not_checked_against_a_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = scene_arg("cornell-box.gltf");
+    let out = nusselt_limited(
+        &[
+            "solve",
+            &cornell,
+            "-o",
+            "out",
+            "-q",
+            "--accuracy",
+            "preview",
+            "--width",
+            "8",
+            "--spp",
+            "1",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success());
+    let big = ["--width", "16384", "--height", "16384"];
+    let mut render = vec!["render", "out/solution.exr", "-q", "-o", "big.exr"];
+    render.extend_from_slice(&big);
+    let out = nusselt_limited(&render, dir.path());
+    assert_refused(
+        &out,
+        &[
+            "the 16384 × 16384 render (--width 16384 --height 16384) needs 32.00 GiB, \
+           over the memory budget of 2.00 GiB",
+        ],
+    );
+    let mut reference = vec!["reference", &cornell, "-q", "-o", "big.exr"];
+    reference.extend_from_slice(&big);
+    let out = nusselt_limited(&reference, dir.path());
+    assert_refused(
+        &out,
+        &["needs 32.00 GiB, over the memory budget of 2.00 GiB"],
+    );
+    // The budget is the flag's.
+    render.extend_from_slice(&["--memory-budget", "0.0001"]);
+    render[6] = "64";
+    render[8] = "64";
+    let out = nusselt_limited(&render, dir.path());
+    assert_refused(
+        &out,
+        &[
+            "the 64 × 64 render (--width 64 --height 64) needs 0.5 MiB, \
+           over the memory budget of 0.1 MiB",
+        ],
+    );
+    assert!(!dir.path().join("big.exr").exists(), "nothing written");
+}
