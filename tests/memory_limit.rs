@@ -429,13 +429,13 @@ fn png_head(width: u32, height: u32) -> Vec<u8> {
     png
 }
 
-/// Bytes of the sparse image files: 4 GiB, above the child's
+/// Bytes of the sparse files: 4 GiB, above the child's
 /// address-space limit, so reading one whole aborts.
 const SPARSE_FILE: u64 = 4 << 30;
 
 /// `name` in `dir`: `head`, then zeros (a hole, no disk used) up to
 /// [`SPARSE_FILE`] bytes.
-fn sparse_image(dir: &Path, name: &str, head: &[u8]) {
+fn sparse_file(dir: &Path, name: &str, head: &[u8]) {
     let path = dir.join(name);
     std::fs::write(&path, head).unwrap();
     std::fs::OpenOptions::new()
@@ -471,7 +471,7 @@ fn image_file_was_read_whole_before_its_header_was_checked() {
     // to be read whole first, which aborts under the limit.
     let dir = tempfile::tempdir().unwrap();
     textured_by_file(dir.path(), "baseColorTexture");
-    sparse_image(dir.path(), "big.png", &png_head(8192, 8192));
+    sparse_file(dir.path(), "big.png", &png_head(8192, 8192));
     let out = nusselt_limited(
         &[
             "solve",
@@ -494,7 +494,7 @@ fn image_file_was_read_whole_before_its_header_was_checked() {
     );
     assert!(!dir.path().join("out").exists(), "nothing written");
     // A small header in the same 4 GiB: refused for the file's own size.
-    sparse_image(dir.path(), "big.png", &png_head(16, 16));
+    sparse_file(dir.path(), "big.png", &png_head(16, 16));
     let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
     assert_refused(
         &out,
@@ -512,7 +512,7 @@ fn jpeg_file_was_read_whole_to_find_its_header() {
     // size is checked first.
     let dir = tempfile::tempdir().unwrap();
     textured_by_file(dir.path(), "baseColorTexture");
-    sparse_image(dir.path(), "big.png", b"\xff\xd8\xff\xe0\x00\x10JFIF\x00");
+    sparse_file(dir.path(), "big.png", b"\xff\xd8\xff\xe0\x00\x10JFIF\x00");
     let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
     assert_refused(
         &out,
@@ -529,7 +529,7 @@ fn image_file_kept_for_the_bake_was_read_whole_unchecked() {
     // but the bake keeps its bytes: its size is checked before reading.
     let dir = tempfile::tempdir().unwrap();
     textured_by_file(dir.path(), "emissiveTexture");
-    sparse_image(dir.path(), "big.png", &png_head(16, 16));
+    sparse_file(dir.path(), "big.png", &png_head(16, 16));
     let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
     assert_refused(
         &out,
@@ -649,4 +649,25 @@ fn render_and_reference_sizes_were_not_checked_against_a_budget() {
         ],
     );
     assert!(!dir.path().join("big.exr").exists(), "nothing written");
+}
+
+#[test]
+fn buffer_file_was_read_whole_unchecked() {
+    // A 4 GiB external buffer (sparse) declared as 48 bytes: `gltf`
+    // reads a buffer file whole, so its size is checked first.
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = Gltf::default();
+    g.light();
+    let json = g.json(json!({"byteLength": g.bin.len(), "uri": "big.bin"}));
+    std::fs::write(dir.path().join("scene.gltf"), json.to_string()).unwrap();
+    sparse_file(dir.path(), "big.bin", &g.bin);
+    let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
+    assert_refused(
+        &out,
+        &[
+            "buffer 0:",
+            "big.bin' has 4.00 GiB, over the memory budget of 2.00 GiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
 }

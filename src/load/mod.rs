@@ -22,7 +22,8 @@
 //!   width × height has been checked against the memory budget, and kept
 //!   reduced (`texture`), so the textures held stay within the budget.
 //!   External URIs must name regular files (a device or FIFO would be read
-//!   without end), and data URIs must carry the MIME type of their role.
+//!   without end) whose sizes are checked against the memory budget before
+//!   they are read, and data URIs must carry the MIME type of their role.
 //! - World-space positions lie within ±[`MAX_COORDINATE`] (the range the f32
 //!   visibility structures handle), else the primitive is refused.
 //! - Positions and transforms are f64 from the first multiplication on.
@@ -192,7 +193,7 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
     options.validate()?;
     let scene_error = |message: String| Error::scene(path, message);
     let (document, blob) = parse(bytes).map_err(scene_error)?;
-    check_uris(&document, base).map_err(scene_error)?;
+    check_uris(&document, base, options.memory_budget).map_err(scene_error)?;
     let buffers = gltf::import_buffers(&document, base, blob)
         .map_err(|e| scene_error(format!("cannot load buffers: {}", describe(&e))))?;
     let mut loader = Loader {
@@ -395,8 +396,12 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
 /// path that stays inside the scene's folder (no `file:` URI, no absolute
 /// path, no `..` above the folder, no link out of it: an untrusted scene
 /// reads nothing else) and a regular file, so that its size bounds what is
-/// read.
-fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
+/// read; the external buffer files, which `gltf` reads whole, must fit
+/// `memory_budget` together.
+fn check_uris(document: &Document, base: Option<&Path>, memory_budget: u64) -> Result<(), String> {
+    // `gltf` reads each external buffer file whole: their sizes, together,
+    // must fit the memory budget.
+    let mut buffer_bytes = 0u64;
     const BUFFER_TYPES: &[&str] = &["application/octet-stream", "application/gltf-buffer"];
     const IMAGE_TYPES: &[&str] = &["image/png", "image/jpeg"];
     let buffer_uris = document.buffers().filter_map(|b| match b.source() {
@@ -454,6 +459,22 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
         match std::fs::metadata(&full) {
             Ok(meta) if !meta.is_file() => {
                 return Err(format!("{what}: '{shown}' is not a regular file"));
+            }
+            Ok(meta) if what.starts_with("buffer") => {
+                buffer_bytes = buffer_bytes.saturating_add(meta.len());
+                if buffer_bytes > memory_budget {
+                    return Err(format!(
+                        "{what}: '{shown}' has {}{}, over the memory budget of {} \
+                         (raise --memory-budget)",
+                        human_bytes(meta.len()),
+                        match buffer_bytes - meta.len() {
+                            0 => String::new(),
+                            b =>
+                                format!(" besides the {} of the buffers before it", human_bytes(b)),
+                        },
+                        human_bytes(memory_budget)
+                    ));
+                }
             }
             Ok(_) => {}
             // An image is read only when a material uses it.
