@@ -63,6 +63,20 @@ SEEDS = {
     # An emitter facing away from a double-sided triangle.
     "facing_away": scene(3, [poly((0, 0, 0), X, Z, emit=LIGHT)],
                          [poly((0, 1, 0), X, Z, double=True)]),
+    # Issue 26: a fan of three slivers sharing an apex, lit from above
+    # (the case that opened every pair of touching clusters).
+    "sliver_fan": scene(3, [poly((0, 2, 0), X, Z, emit=LIGHT)],
+                        [poly((0, 0, 0), (3, 0, 0.0625), (3, 0, 0.03125)),
+                         poly((0, 0, 0), (3, 0, 0.09375), (3, 0, 0.0625)),
+                         poly((0, 0, 0), (3, 0, 0.125), (3, 0, 0.09375))]),
+    # Issue 26: coplanar quads sharing edges (no link between coplanar
+    # nodes), under an emitter.
+    "coplanar_touching": scene(3, [poly((0, 1, 0), X, Z, emit=LIGHT),
+                                   poly((0, 0, 0), Z, X), poly((1, 0, 0), Z, X), poly((0, 0, 1), Z, X)]),
+    # Issue 26: a receiver facing away from the light beside one facing
+    # it, at the smallest scale (1 mm).
+    "facing_away_mm": scene(0, [poly((0, 0, 0), Z, X, emit=LIGHT), poly((0, 1, 0), Z, X),
+                                poly((1.5, 1, 0), X, Z)]),
 }
 
 

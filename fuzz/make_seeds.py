@@ -173,6 +173,118 @@ def main():
     d.node({"mesh": d.mesh([{"attributes": {"POSITION": d.pos(QUAD)}, "material": m}])})
     write("no_emitters.glb", d.glb())
 
+    issue26()
+
+
+def lit_quad_doc(**node):
+    """A lit scene with a second quad on a node with the given fields."""
+    d = Doc()
+    d.light_quad()
+    d.node(dict({"mesh": 0}, **node))
+    return d
+
+
+def issue26():
+    """Malformed or hostile single files of issue 26, each refused (or
+    accepted) as tests/fuzz_corpus.rs expects."""
+    # A projective node matrix (column-major; m33 = -1 flips the receiver).
+    write("projective_matrix.gltf",
+          lit_quad_doc(matrix=[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 2, -1]).gltf())
+    # A shear: columns 0 and 1 not orthogonal.
+    write("shear_matrix.gltf",
+          lit_quad_doc(matrix=[1, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1, 0, 0, 0, 2, 1]).gltf())
+    # A matrix together with a translation.
+    write("matrix_and_trs.gltf",
+          lit_quad_doc(matrix=[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 2, 1], translation=[0, 0, 1]).gltf())
+
+    # A sparse index (7) at or past the accessor's count (4).
+    d = Doc()
+    d.light_quad()
+    base = d.pos(QUAD)
+    d.j["accessors"][base]["sparse"] = {"count": 1,
+                                        "indices": {"bufferView": d.view(struct.pack("<H", 7)), "componentType": 5123},
+                                        "values": {"bufferView": d.view(struct.pack("<3f", 1, 1, 0.5))}}
+    d.node({"mesh": d.mesh([{"attributes": {"POSITION": base}}], "SparsePast")})
+    write("sparse_index_past_count.gltf", d.gltf())
+
+    # A buffer view past the buffer's declared byteLength (the data URI
+    # holds the bytes; the declared length is 16 short).
+    d = Doc()
+    d.light_quad()
+    j = json.loads(d.gltf())
+    j["buffers"][0]["byteLength"] -= 16
+    write("view_past_buffer.gltf", json.dumps(j, separators=(",", ":")).encode())
+
+    # A GLB whose header declares fewer bytes than the file has.
+    d = Doc()
+    d.light_quad()
+    glb = bytearray(d.glb())
+    struct.pack_into("<I", glb, 8, len(glb) - 8)
+    write("glb_length_short.glb", bytes(glb))
+
+    # asset.version 3.0.
+    d = Doc()
+    d.light_quad()
+    d.j["asset"] = {"version": "3.0"}
+    write("version_3.gltf", d.gltf())
+
+    # External buffers outside the scene's folder: climbing, absolute, file:.
+    for name, uri in [("uri_parent.gltf", "../../../../etc/passwd"),
+                      ("uri_absolute.gltf", "/etc/passwd"),
+                      ("uri_file_scheme.gltf", "file:///etc/passwd")]:
+        d = Doc()
+        d.light_quad()
+        j = json.loads(d.gltf())
+        j["buffers"].append({"byteLength": 64, "uri": uri})
+        j["bufferViews"].append({"buffer": 1, "byteOffset": 0, "byteLength": 48})
+        j["accessors"].append({"bufferView": len(j["bufferViews"]) - 1, "componentType": 5126, "count": 4,
+                               "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]})
+        j["meshes"].append({"primitives": [{"attributes": {"POSITION": len(j["accessors"]) - 1}}]})
+        j["nodes"].append({"mesh": len(j["meshes"]) - 1})
+        j["scenes"][0]["nodes"].append(len(j["nodes"]) - 1)
+        write(name, json.dumps(j, separators=(",", ":")).encode())
+
+    # Names with ESC and carriage return on a broken mesh: its error names it.
+    d = Doc()
+    d.light_quad()
+    d.node({"name": "\x1b[2J\rNode", "mesh": d.mesh(
+        [{"attributes": {"POSITION": d.pos([(0, 0, 0), (1, math.nan, 0), (0, 1, 0)])}}], "\x1b[31mRed\rMesh")})
+    write("control_names.gltf", d.gltf())
+
+    # An instancing bomb, scaled down: 32 primitives of 1024 triangles on
+    # each of the 256 leaves of a node tree, 2^23 triangles (4 GiB loaded)
+    # from an 18 KB file, refused from the declared counts before any mesh
+    # is read (the memory budget, 2 GiB by default, is what it hits).
+    d = Doc()
+    d.light_quad()
+    p = d.pos(QUAD)
+    i = d.idx([0, 1, 2, 0, 2, 3] * 512)
+    mesh = d.mesh([{"attributes": {"POSITION": p}, "indices": i, "material": 0}] * 32, "Tiles")
+
+    def tree(depth):
+        if depth == 0:
+            return d.node({"mesh": mesh}, root=False)
+        a, b = tree(depth - 1), tree(depth - 1)
+        return d.node({"children": [a, b]}, root=False)
+
+    d.j["scenes"][0]["nodes"].append(tree(8))
+    write("instancing_bomb.glb", d.glb())
+
+    # Six image entries sharing one source (a bufferView holding a PNG),
+    # each the texture of its own quad: accepted, decoded once.
+    d = Doc()
+    d.light_quad()
+    view = d.view(png(4, 4, [(200, 40, 40)] * 8 + [(40, 40, 200)] * 8))
+    d.j["images"] = [{"bufferView": view, "mimeType": "image/png", "name": f"entry {k}"} for k in range(6)]
+    d.j["textures"] = [{"source": k} for k in range(6)]
+    p, t, i = d.pos(QUAD), d.uv(UV), d.idx([0, 1, 2, 0, 2, 3])
+    for k in range(6):
+        m = d.material({"name": f"Wall{k}", "pbrMetallicRoughness": {"baseColorTexture": {"index": k},
+                                                                      "metallicFactor": 0}})
+        mesh = d.mesh([{"attributes": {"POSITION": p, "TEXCOORD_0": t}, "indices": i, "material": m}])
+        d.node({"mesh": mesh, "translation": [2 * k, 0, 1]})
+    write("shared_image_source.gltf", d.gltf())
+
 
 if __name__ == "__main__":
     main()

@@ -36,6 +36,10 @@ use crate::util::union_find::UnionFind;
 
 /// Smallest and largest accepted atlas side, in texels.
 pub const RESOLUTION_RANGE: (u32, u32) = (16, 16384);
+/// Bytes the atlases hold per texel at most: B, H and the display
+/// (12 each), the distance and written mask (9), their encodings (up to
+/// 36), rounded up.
+pub const BYTES_PER_TEXEL: u64 = 96;
 /// Texels kept free around each generated chart's footprint.
 const PADDING: u32 = 2;
 /// How far from a triangle's footprint (in texels) its values are written:

@@ -82,6 +82,70 @@ fn seed_corpus_covers_valid_and_broken_inputs() {
     }
 }
 
+/// The single-file inputs of issue 26 in the seed corpus, each with the
+/// outcome the loader must give: `Ok`, or an error containing the text.
+/// Loaded with the corpus folder as the scene's folder, so that external
+/// URIs meet the folder check (the fuzz body, without a folder, refuses
+/// them earlier).
+const ISSUE_26_SEEDS: [(&str, Option<&str>); 13] = [
+    (
+        "projective_matrix.gltf",
+        Some("not [0, 0, 0, 1]: a projection"),
+    ),
+    (
+        "shear_matrix.gltf",
+        Some("columns 0 and 1 are not orthogonal: a shear"),
+    ),
+    (
+        "matrix_and_trs.gltf",
+        Some("has both a matrix and translation/rotation/scale"),
+    ),
+    (
+        "sparse_index_past_count.gltf",
+        Some("sparse index 0 is 7: sparse indices must increase and stay below"),
+    ),
+    ("view_past_buffer.gltf", Some("exceeds buffer 0")),
+    ("glb_length_short.glb", Some("GLB header declares length")),
+    ("version_3.gltf", Some("asset.version is '3.0'")),
+    ("uri_parent.gltf", Some("leads out of the scene's folder")),
+    ("uri_absolute.gltf", Some("is an absolute path")),
+    ("uri_file_scheme.gltf", Some("is a file: URI")),
+    ("control_names.gltf", Some("Red Mesh' primitive 0")),
+    (
+        "instancing_bomb.glb",
+        Some("instances 8388610 triangles, most from mesh 'Tiles' (32768 triangles × 256 nodes)"),
+    ),
+    ("shared_image_source.gltf", None),
+];
+
+#[test]
+fn issue_26_seeds_are_refused_or_accepted_as_the_loader_should() {
+    let dir = fuzz_dir().join("corpus/load_gltf");
+    for (name, expected) in ISSUE_26_SEEDS {
+        let data = std::fs::read(dir.join(name)).expect("seed file (fuzz/make_seeds.py)");
+        let result = catch_unwind(AssertUnwindSafe(|| {
+            load_scene_from_slice(&data, Some(&dir), &LoadOptions::default())
+        }))
+        .unwrap_or_else(|_| panic!("{name}: the loader panicked"));
+        match (result, expected) {
+            (Ok(_), None) => {}
+            (Ok(_), Some(needle)) => panic!("{name} should fail with '{needle}'"),
+            (Err(e), None) => panic!("{name} should load: {e}"),
+            (Err(e), Some(needle)) => {
+                let message = e.to_string();
+                assert!(message.contains(needle), "{name}: {message}");
+                // No control character reaches the terminal, and no
+                // file outside the folder is echoed.
+                assert!(
+                    !message.chars().any(char::is_control),
+                    "{name}: {message:?}"
+                );
+                assert!(!message.contains("root:"), "{name}: {message}");
+            }
+        }
+    }
+}
+
 /// The `triangulate` fuzz target: its seed corpus and recorded crashes
 /// triangulate without panicking and the result validates.
 #[test]

@@ -406,3 +406,268 @@ fn texture_entries_sharing_one_png_were_each_decoded_to_f32() {
     );
     assert!(!dir.path().join("out2").exists(), "nothing written");
 }
+
+/// A PNG's signature and `IHDR` chunk (`width` × `height`, 8-bit RGBA),
+/// then the start of an `IDAT` chunk: all a decoder reads of its header.
+fn png_head(width: u32, height: u32) -> Vec<u8> {
+    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let start = out.len();
+        out.extend_from_slice(kind);
+        out.extend_from_slice(data);
+        let crc = crc32fast::hash(&out[start..]);
+        out.extend_from_slice(&crc.to_be_bytes());
+    }
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    png.extend_from_slice(&(1u32 << 30).to_be_bytes());
+    png.extend_from_slice(b"IDAT");
+    png
+}
+
+/// Bytes of the sparse files: 4 GiB, above the child's
+/// address-space limit, so reading one whole aborts.
+const SPARSE_FILE: u64 = 4 << 30;
+
+/// `name` in `dir`: `head`, then zeros (a hole, no disk used) up to
+/// [`SPARSE_FILE`] bytes.
+fn sparse_file(dir: &Path, name: &str, head: &[u8]) {
+    let path = dir.join(name);
+    std::fs::write(&path, head).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(SPARSE_FILE)
+        .unwrap();
+}
+
+/// A lit quad whose material's `slot` (`baseColorTexture` or
+/// `emissiveTexture`) is the image file `big.png`, named 'big'.
+fn textured_by_file(dir: &Path, slot: &str) {
+    let mut g = Gltf::default();
+    g.light();
+    g.images.push(json!({"uri": "big.png", "name": "big"}));
+    g.textures.push(json!({"source": 0}));
+    let m = if slot == "baseColorTexture" {
+        g.material(json!({"name": "Wall", "pbrMetallicRoughness": {
+            "metallicFactor": 0.0, "baseColorTexture": {"index": 0}}}))
+    } else {
+        g.material(json!({"name": "Wall", slot: {"index": 0}}))
+    };
+    let mesh = g.quad_mesh(None, Some(m));
+    g.root(json!({"mesh": mesh}));
+    std::fs::write(dir.join("scene.gltf"), g.embedded()).unwrap();
+}
+
+#[test]
+fn image_file_was_read_whole_before_its_header_was_checked() {
+    // A 4 GiB file with a PNG header of 8192² RGBA texels: refused from
+    // its header (read through a buffer) for the decode's memory; it used
+    // to be read whole first, which aborts under the limit.
+    let dir = tempfile::tempdir().unwrap();
+    textured_by_file(dir.path(), "baseColorTexture");
+    sparse_file(dir.path(), "big.png", &png_head(8192, 8192));
+    let out = nusselt_limited(
+        &[
+            "solve",
+            "scene.gltf",
+            "-o",
+            "out",
+            "-q",
+            "--memory-budget",
+            "0.25",
+        ],
+        dir.path(),
+    );
+    assert_refused(
+        &out,
+        &[
+            "image 0 ('big')",
+            "big.png",
+            "8192×8192 texels need 268.0 MiB to decode, over the memory budget of 256.0 MiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+    // A small header in the same 4 GiB: refused for the file's own size.
+    sparse_file(dir.path(), "big.png", &png_head(16, 16));
+    let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
+    assert_refused(
+        &out,
+        &[
+            "image 0 ('big')",
+            "the file has 4.00 GiB, over the memory budget of 2.00 GiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}
+
+#[test]
+fn jpeg_file_was_read_whole_to_find_its_header() {
+    // A JPEG decoder reads its whole input for the header: the file's
+    // size is checked first.
+    let dir = tempfile::tempdir().unwrap();
+    textured_by_file(dir.path(), "baseColorTexture");
+    sparse_file(dir.path(), "big.png", b"\xff\xd8\xff\xe0\x00\x10JFIF\x00");
+    let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
+    assert_refused(
+        &out,
+        &[
+            "image 0 ('big')",
+            "the file has 4.00 GiB, over the memory budget of 2.00 GiB",
+        ],
+    );
+}
+
+#[test]
+fn image_file_kept_for_the_bake_was_read_whole_unchecked() {
+    // An emissive texture with the default zero factor is never decoded,
+    // but the bake keeps its bytes: its size is checked before reading.
+    let dir = tempfile::tempdir().unwrap();
+    textured_by_file(dir.path(), "emissiveTexture");
+    sparse_file(dir.path(), "big.png", &png_head(16, 16));
+    let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
+    assert_refused(
+        &out,
+        &[
+            "image 0 ('big')",
+            "the file has 4.00 GiB, over the memory budget of 2.00 GiB",
+        ],
+    );
+}
+
+#[test]
+fn render_size_was_not_checked_against_the_memory_budget() {
+    // 16384² passes the side cap; its buffers (128 bytes a pixel) do not
+    // fit the default budget, and are refused before the solve.
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = scene_arg("cornell-box.gltf");
+    let solve = |extra: &[&str]| {
+        let mut args = vec!["solve", &cornell, "-o", "out", "-q"];
+        args.extend_from_slice(extra);
+        nusselt_limited(&args, dir.path())
+    };
+    let out = solve(&["--width", "16384", "--height", "16384"]);
+    assert_refused(
+        &out,
+        &[
+            "the 16384 × 16384 render (--width 16384 --height 16384) needs 32.00 GiB, \
+             over the memory budget of 2.00 GiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+    // The classic methods check it too, after their own budget.
+    let out = solve(&["--method", "jacobi", "--width", "16384"]);
+    assert_refused(
+        &out,
+        &["--width 16384 and the camera's aspect ratio) needs 32.00 GiB"],
+    );
+    // Past the side cap: refused by it.
+    let out = solve(&["--width", "1000000", "--height", "1000000"]);
+    assert_refused(&out, &["each side must be between 1 and 16384"]);
+    // Snapshots hold a frame each, lightmaps their atlases.
+    let out = solve(&[
+        "--width",
+        "2048",
+        "--height",
+        "2048",
+        "--snapshots",
+        &(1..=100)
+            .map(|k| k.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
+    ]);
+    assert_refused(
+        &out,
+        &[
+            "the 2048 × 2048 render (--width 2048 --height 2048) needs 512.0 MiB, \
+             its 100 snapshots (--snapshots) 4.69 GiB: 5.19 GiB in all, \
+             over the memory budget of 2.00 GiB",
+        ],
+    );
+    let out = solve(&["--lightmap", "16384"]);
+    assert_refused(
+        &out,
+        &["the lightmaps (--lightmap 16384) 24.00 GiB: 24.03 GiB in all"],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}
+
+#[test]
+fn render_and_reference_sizes_were_not_checked_against_a_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = scene_arg("cornell-box.gltf");
+    let out = nusselt_limited(
+        &[
+            "solve",
+            &cornell,
+            "-o",
+            "out",
+            "-q",
+            "--accuracy",
+            "preview",
+            "--width",
+            "8",
+            "--spp",
+            "1",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success());
+    let big = ["--width", "16384", "--height", "16384"];
+    let mut render = vec!["render", "out/solution.exr", "-q", "-o", "big.exr"];
+    render.extend_from_slice(&big);
+    let out = nusselt_limited(&render, dir.path());
+    assert_refused(
+        &out,
+        &[
+            "the 16384 × 16384 render (--width 16384 --height 16384) needs 32.00 GiB, \
+           over the memory budget of 2.00 GiB",
+        ],
+    );
+    let mut reference = vec!["reference", &cornell, "-q", "-o", "big.exr"];
+    reference.extend_from_slice(&big);
+    let out = nusselt_limited(&reference, dir.path());
+    assert_refused(
+        &out,
+        &["needs 32.00 GiB, over the memory budget of 2.00 GiB"],
+    );
+    // The budget is the flag's.
+    render.extend_from_slice(&["--memory-budget", "0.0001"]);
+    render[6] = "64";
+    render[8] = "64";
+    let out = nusselt_limited(&render, dir.path());
+    assert_refused(
+        &out,
+        &[
+            "the 64 × 64 render (--width 64 --height 64) needs 0.5 MiB, \
+           over the memory budget of 0.1 MiB",
+        ],
+    );
+    assert!(!dir.path().join("big.exr").exists(), "nothing written");
+}
+
+#[test]
+fn buffer_file_was_read_whole_unchecked() {
+    // A 4 GiB external buffer (sparse) declared as 48 bytes: `gltf`
+    // reads a buffer file whole, so its size is checked first.
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = Gltf::default();
+    g.light();
+    let json = g.json(json!({"byteLength": g.bin.len(), "uri": "big.bin"}));
+    std::fs::write(dir.path().join("scene.gltf"), json.to_string()).unwrap();
+    sparse_file(dir.path(), "big.bin", &g.bin);
+    let out = nusselt_limited(&["solve", "scene.gltf", "-o", "out", "-q"], dir.path());
+    assert_refused(
+        &out,
+        &[
+            "buffer 0:",
+            "big.bin' has 4.00 GiB, over the memory budget of 2.00 GiB",
+        ],
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
+}

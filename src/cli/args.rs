@@ -326,12 +326,38 @@ pub struct KernelArgs {
     pub memory_budget: f64,
 }
 
+/// `--memory-budget GIB` in bytes: a positive, finite number of GiB.
+fn gib_bytes(gib: f64) -> Result<u64> {
+    if !(gib > 0.0 && gib.is_finite()) {
+        bail!("--memory-budget must be a positive number of GiB");
+    }
+    Ok((gib * (1u64 << 30) as f64) as u64)
+}
+
+/// The memory budget of the subcommands that render without solving
+/// (`render`, `reference`).
+#[derive(Args, Debug)]
+#[command(next_help_heading = "View")]
+pub struct ImageBudgetArgs {
+    /// Largest memory the image (its buffers and encodings) and, for
+    /// `reference`, the scene's textures and triangles may take, in GiB;
+    /// a larger --width × --height is refused before anything is
+    /// rendered.
+    #[arg(long, value_name = "GIB", default_value_t = 2.0)]
+    pub memory_budget: f64,
+}
+
+impl ImageBudgetArgs {
+    /// The budget in bytes; validated.
+    pub fn bytes(&self) -> Result<u64> {
+        gib_bytes(self.memory_budget)
+    }
+}
+
 impl KernelArgs {
     /// The settings of `kernel`; validated.
     pub fn settings(&self, kernel: Kernel, seed: u64) -> Result<MatrixSettings> {
-        if !(self.memory_budget > 0.0 && self.memory_budget.is_finite()) {
-            bail!("--memory-budget must be a positive number of GiB");
-        }
+        let memory_budget = gib_bytes(self.memory_budget)?;
         let settings = MatrixSettings {
             kernel,
             visibility_rays: self.visibility_rays.unwrap_or(4).max(1),
@@ -340,7 +366,7 @@ impl KernelArgs {
             hemicube_resolution: self.hemicube_resolution,
             hemicube_rotation: !self.no_hemicube_rotation,
             seed,
-            memory_budget: (self.memory_budget * (1u64 << 30) as f64) as u64,
+            memory_budget,
         };
         super::checked(settings.validate())?;
         Ok(settings)

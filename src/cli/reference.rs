@@ -14,7 +14,7 @@ use nusselt::reference::{self, ReferenceSettings};
 use nusselt::render::view::View;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, LoadArgs, SkyArgs, ViewArgs, exr_path, png_path};
+use super::args::{Common, ImageBudgetArgs, LoadArgs, SkyArgs, ViewArgs, exr_path, png_path};
 use super::{checked, init_threads};
 
 #[derive(Args, Debug)]
@@ -39,6 +39,8 @@ pub struct ReferenceArgs {
     #[command(flatten)]
     view: ViewArgs,
     #[command(flatten)]
+    budget: ImageBudgetArgs,
+    #[command(flatten)]
     common: Common,
 }
 
@@ -46,7 +48,9 @@ pub struct ReferenceArgs {
 pub fn run(args: ReferenceArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     let progress = Progress::new(!args.common.quiet);
-    let options = args.load.options_with(&args.sky)?;
+    let budget = args.budget.bytes()?;
+    let mut options = args.load.options_with(&args.sky)?;
+    options.memory_budget = budget;
     let settings = ReferenceSettings {
         samples_per_pixel: args.view.spp,
         seed: args.common.seed,
@@ -57,7 +61,9 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         nusselt::output::check_target(target)?;
     }
     let scene = super::load(&args.scene, &options, &progress)?;
-    let view = View::resolve(scene.cameras.first(), scene.bounds, &args.view.overrides())?;
+    let overrides = args.view.overrides();
+    let view = View::resolve(scene.cameras.first(), scene.bounds, &overrides)?;
+    super::checked(view.check_memory(&overrides, &[], budget))?;
     let mut result = reference::render_reference(&scene, &view, &settings, &progress)
         .with_context(|| format!("path tracing {}", args.scene.display()))?;
     result.stats.scene = args.scene.display().to_string();

@@ -20,7 +20,7 @@ use nusselt::render::view::View;
 use nusselt::report::Report;
 use nusselt::util::progress::Progress;
 
-use super::args::{Common, ViewArgs, exr_path, png_path};
+use super::args::{Common, ImageBudgetArgs, ViewArgs, exr_path, png_path};
 use super::init_threads;
 
 #[derive(Args, Debug)]
@@ -39,6 +39,8 @@ pub struct RenderArgs {
     exposure: Option<f32>,
     #[command(flatten)]
     view: ViewArgs,
+    #[command(flatten)]
+    budget: ImageBudgetArgs,
     #[command(flatten)]
     common: Common,
 }
@@ -68,6 +70,7 @@ fn solve_report(solution: &std::path::Path, bytes: &[u8]) -> Option<Report> {
 pub fn run(args: RenderArgs) -> Result<()> {
     init_threads(args.common.threads)?;
     super::checked(pipeline::check_exposure(args.exposure))?;
+    let budget = args.budget.bytes()?;
     let progress = Progress::new(!args.common.quiet);
     for target in std::iter::once(&args.output).chain(&args.png) {
         nusselt::output::check_target(target)?;
@@ -106,6 +109,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         overrides.height = Some(v.height);
     }
     let view = View::resolve(base.as_ref(), (lo, hi), &overrides)?;
+    super::checked(view.check_memory(&overrides, &[], budget))?;
     let settings = RenderSettings::with_samples(args.view.spp, args.common.seed);
     let frame = nusselt::render::render(&mesh, &view, &settings, &progress);
     let exposure = args.png.as_ref().map(|_| {

@@ -22,7 +22,8 @@
 //!   width × height has been checked against the memory budget, and kept
 //!   reduced (`texture`), so the textures held stay within the budget.
 //!   External URIs must name regular files (a device or FIFO would be read
-//!   without end), and data URIs must carry the MIME type of their role.
+//!   without end) whose sizes are checked against the memory budget before
+//!   they are read, and data URIs must carry the MIME type of their role.
 //! - World-space positions lie within ±[`MAX_COORDINATE`] (the range the f32
 //!   visibility structures handle), else the primitive is refused.
 //! - Positions and transforms are f64 from the first multiplication on.
@@ -37,7 +38,8 @@ mod accessor;
 mod texture;
 
 use std::collections::{BTreeMap, HashMap};
-use std::path::Path;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{DMat4, DQuat, DVec2, DVec3};
@@ -191,7 +193,7 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
     options.validate()?;
     let scene_error = |message: String| Error::scene(path, message);
     let (document, blob) = parse(bytes).map_err(scene_error)?;
-    check_uris(&document, base).map_err(scene_error)?;
+    check_uris(&document, base, options.memory_budget).map_err(scene_error)?;
     let buffers = gltf::import_buffers(&document, base, blob)
         .map_err(|e| scene_error(format!("cannot load buffers: {}", describe(&e))))?;
     let mut loader = Loader {
@@ -208,6 +210,7 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         cameras: Vec::new(),
         textures: HashMap::new(),
         decoded: HashMap::new(),
+        decoded_files: HashMap::new(),
         texture_bytes: 0,
         world: vec![None; document.nodes().len()],
         punctual_lights: Vec::new(),
@@ -225,11 +228,15 @@ fn load(bytes: &[u8], base: Option<&Path>, path: &Path, options: &LoadOptions) -
         .collect();
     used.sort_unstable();
     used.dedup();
-    let images = used
-        .iter()
-        .map(|&i| loader.image_bytes(i))
-        .collect::<Result<Vec<_>, String>>()
-        .map_err(scene_error)?;
+    // Each read within the budget, with the textures and the images
+    // read before it.
+    let mut images = Vec::with_capacity(used.len());
+    let mut held = loader.texture_bytes;
+    for &i in &used {
+        let bytes = loader.image_bytes(i, held).map_err(scene_error)?;
+        held = held.saturating_add(bytes.len() as u64);
+        images.push(bytes);
+    }
     let source = SourceDocument {
         json: without_geometry(&document, &used),
         images,
@@ -389,8 +396,12 @@ fn parse(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
 /// path that stays inside the scene's folder (no `file:` URI, no absolute
 /// path, no `..` above the folder, no link out of it: an untrusted scene
 /// reads nothing else) and a regular file, so that its size bounds what is
-/// read.
-fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
+/// read; the external buffer files, which `gltf` reads whole, must fit
+/// `memory_budget` together.
+fn check_uris(document: &Document, base: Option<&Path>, memory_budget: u64) -> Result<(), String> {
+    // `gltf` reads each external buffer file whole: their sizes, together,
+    // must fit the memory budget.
+    let mut buffer_bytes = 0u64;
     const BUFFER_TYPES: &[&str] = &["application/octet-stream", "application/gltf-buffer"];
     const IMAGE_TYPES: &[&str] = &["image/png", "image/jpeg"];
     let buffer_uris = document.buffers().filter_map(|b| match b.source() {
@@ -448,6 +459,22 @@ fn check_uris(document: &Document, base: Option<&Path>) -> Result<(), String> {
         match std::fs::metadata(&full) {
             Ok(meta) if !meta.is_file() => {
                 return Err(format!("{what}: '{shown}' is not a regular file"));
+            }
+            Ok(meta) if what.starts_with("buffer") => {
+                buffer_bytes = buffer_bytes.saturating_add(meta.len());
+                if buffer_bytes > memory_budget {
+                    return Err(format!(
+                        "{what}: '{shown}' has {}{}, over the memory budget of {} \
+                         (raise --memory-budget)",
+                        human_bytes(meta.len()),
+                        match buffer_bytes - meta.len() {
+                            0 => String::new(),
+                            b =>
+                                format!(" besides the {} of the buffers before it", human_bytes(b)),
+                        },
+                        human_bytes(memory_budget)
+                    ));
+                }
             }
             Ok(_) => {}
             // An image is read only when a material uses it.
@@ -555,6 +582,9 @@ struct Loader<'a> {
     /// Decoded textures by encoded content: image entries that share a
     /// file or bytes share one decode.
     decoded: HashMap<Vec<u8>, Arc<Texture>>,
+    /// Decoded textures by canonical file path, so that a second entry
+    /// naming a file is not checked again as if decoded anew.
+    decoded_files: HashMap<PathBuf, Arc<Texture>>,
     /// Bytes the decoded textures keep, all together, with their encoded
     /// bytes (the keys of `decoded`).
     texture_bytes: u64,
@@ -950,7 +980,26 @@ impl Loader<'_> {
         if let Some(t) = self.textures.get(&index) {
             return Ok(t.clone());
         }
-        let bytes = self.image_bytes(index)?;
+        // An external file: entries naming the same file share its decode;
+        // its header and size are checked before it is read whole.
+        let file = self.image_file(index).map(|path| {
+            let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
+            (path, key)
+        });
+        if let Some((path, key)) = &file {
+            if let Some(t) = self.decoded_files.get(key) {
+                let t = t.clone();
+                self.textures.insert(index, t.clone());
+                return Ok(t);
+            }
+            texture::check_file(path, self.options.memory_budget, self.texture_bytes).map_err(
+                |e| {
+                    let shown = short(&path.display().to_string());
+                    format!("{}: '{shown}': {e}", self.image_label(index))
+                },
+            )?;
+        }
+        let bytes = self.image_bytes(index, self.texture_bytes)?;
         let texture = match self.decoded.get(&bytes) {
             Some(t) => t.clone(),
             None => {
@@ -964,8 +1013,26 @@ impl Loader<'_> {
                 texture
             }
         };
+        if let Some((_, key)) = file {
+            self.decoded_files.insert(key, texture.clone());
+        }
         self.textures.insert(index, texture.clone());
         Ok(texture)
+    }
+
+    /// The file image `index` names by a relative URI, resolved against
+    /// the scene's folder (`check_uris` has kept it inside), or `None`
+    /// for an image in a buffer or a data URI.
+    fn image_file(&self, index: usize) -> Option<PathBuf> {
+        let image = self.document.images().nth(index)?;
+        let gltf::image::Source::Uri { uri, .. } = image.source() else {
+            return None;
+        };
+        if uri.contains(':') {
+            return None;
+        }
+        let decoded = urlencoding::decode(uri).ok()?;
+        Some(self.base?.join(decoded.as_ref()))
     }
 
     /// `image N ('name')`, for messages.
@@ -977,7 +1044,9 @@ impl Loader<'_> {
     }
 
     /// The encoded bytes of image `index`, wherever the file keeps them.
-    fn image_bytes(&self, index: usize) -> Result<Vec<u8>, String> {
+    /// An external file is read only when its size, with the `in_use`
+    /// bytes already held, fits the memory budget.
+    fn image_bytes(&self, index: usize, in_use: u64) -> Result<Vec<u8>, String> {
         let image = self
             .document
             .images()
@@ -996,6 +1065,11 @@ impl Loader<'_> {
                         format!("{label}: buffer view {} exceeds its buffer", view.index())
                     })?
                     .to_vec()
+            }
+            gltf::image::Source::Uri { .. } if let Some(path) = self.image_file(index) => {
+                read_bounded(&path, self.options.memory_budget, in_use).map_err(|e| {
+                    format!("{label}: '{}': {e}", short(&path.display().to_string()))
+                })?
             }
             gltf::image::Source::Uri { uri, .. } => {
                 gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), self.base)
@@ -1467,6 +1541,23 @@ fn mesh_label(mesh: &gltf::Mesh<'_>) -> String {
 }
 
 /// A name or URI cut to a length that keeps messages on one line.
+/// The whole file at `path`, refused unread when its size, with `in_use`
+/// bytes already held, is over `memory_budget`; at most that many bytes
+/// are read even if the file grows meanwhile.
+fn read_bounded(path: &Path, memory_budget: u64, in_use: u64) -> Result<Vec<u8>, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read the file: {e}"))?;
+    let len = file
+        .metadata()
+        .map_err(|e| format!("cannot read the file: {e}"))?
+        .len();
+    texture::check_file_size(len, memory_budget, in_use)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(len)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read the file: {e}"))?;
+    Ok(bytes)
+}
+
 fn short(s: &str) -> String {
     const MAX: usize = 80;
     let one_line: String = s

@@ -11,7 +11,8 @@
 //! holds the image in its own pixel format (the header's width × height ×
 //! bytes per pixel) plus that kept grid, converted a strip of rows at a
 //! time; [`Texture::decode`] checks this against the memory budget from the
-//! header, before anything is decoded.
+//! header, before anything is decoded. An image file is checked the same
+//! way, and its size too, before it is read whole ([`check_file`]).
 //!
 //! Invariants:
 //! - Texels are linear (sRGB decoded) before any averaging; alpha is dropped.
@@ -39,7 +40,9 @@
 //!   p0       p1
 //! ```
 
-use std::io::Cursor;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Cursor, Seek};
+use std::path::Path;
 
 use glam::{DVec2, DVec3};
 use gltf::texture::{MagFilter, WrappingMode};
@@ -117,54 +120,121 @@ pub(super) fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
+/// An image reader over `input` with its format guessed from the first
+/// bytes (PNG or JPEG, else an error) and the decoder's allocations
+/// limited to [`MAX_DECODE_BYTES`] and `memory_budget`.
+fn image_reader<R: BufRead + Seek>(
+    input: R,
+    memory_budget: u64,
+) -> Result<image::ImageReader<R>, String> {
+    let mut reader = image::ImageReader::new(input)
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    if reader.format().is_none() {
+        return Err("not a PNG or JPEG image".to_string());
+    }
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_DECODE_BYTES.min(memory_budget));
+    reader.limits(limits);
+    Ok(reader)
+}
+
+/// Checks the header `reader` reads: the decoded image and the kept
+/// texels, with `in_use` bytes already held, must fit `memory_budget`.
+fn check_header<R: BufRead + Seek>(
+    reader: image::ImageReader<R>,
+    memory_budget: u64,
+    in_use: u64,
+) -> Result<(), String> {
+    let decoder = reader.into_decoder().map_err(|e| e.to_string())?;
+    let (width, height) = image::ImageDecoder::dimensions(&decoder);
+    let decoded = image::ImageDecoder::total_bytes(&decoder);
+    drop(decoder);
+    if u64::from(width) * u64::from(height) > MAX_TEXELS {
+        return Err(format!(
+            "{width}×{height} texels exceed the limit of {MAX_TEXELS}"
+        ));
+    }
+    let (kw, kh, _) = reduction(width as usize, height as usize);
+    let need = decoded
+        .saturating_add(Texture::bytes_of(kw * kh))
+        .saturating_add(in_use);
+    if need > memory_budget || decoded > MAX_DECODE_BYTES {
+        return Err(format!(
+            "{width}×{height} texels need {} to decode{}, over the memory budget of {} \
+             (raise --memory-budget or use a smaller image)",
+            human_bytes(need),
+            besides(in_use),
+            human_bytes(memory_budget.min(MAX_DECODE_BYTES))
+        ));
+    }
+    Ok(())
+}
+
+/// `" besides the N the textures before it keep"`, or nothing for 0.
+fn besides(in_use: u64) -> String {
+    match in_use {
+        0 => String::new(),
+        b => format!(
+            " besides the {} the textures before it keep",
+            human_bytes(b)
+        ),
+    }
+}
+
+/// Checks that a file of `len` bytes, with `in_use` bytes already held,
+/// fits `memory_budget`, as it must to be read whole.
+pub(super) fn check_file_size(len: u64, memory_budget: u64, in_use: u64) -> Result<(), String> {
+    if len.saturating_add(in_use) > memory_budget {
+        return Err(format!(
+            "the file has {}{}, over the memory budget of {} \
+             (raise --memory-budget or use a smaller image)",
+            human_bytes(len),
+            match in_use {
+                0 => String::new(),
+                b => format!(" besides the {} already held", human_bytes(b)),
+            },
+            human_bytes(memory_budget)
+        ));
+    }
+    Ok(())
+}
+
+/// Checks the image file at `path` before it is read whole: its header
+/// as [`Texture::decode`] does, and its size with [`check_file_size`].
+/// A PNG's header is read alone (through a buffered reader, the chunks
+/// before the image data), so it is checked first; a JPEG decoder reads
+/// its whole input to find the header, so its size is checked first.
+pub(super) fn check_file(path: &Path, memory_budget: u64, in_use: u64) -> Result<(), String> {
+    let file = File::open(path).map_err(|e| format!("cannot read the file: {e}"))?;
+    let len = file
+        .metadata()
+        .map_err(|e| format!("cannot read the file: {e}"))?
+        .len();
+    let reader = image_reader(BufReader::new(file), memory_budget)?;
+    if reader.format() == Some(image::ImageFormat::Png) {
+        check_header(reader, memory_budget, in_use)?;
+        check_file_size(len, memory_budget, in_use)
+    } else {
+        check_file_size(len, memory_budget, in_use)?;
+        check_header(reader, memory_budget, in_use)
+    }
+}
+
 impl Texture {
     /// Decodes a PNG or JPEG and converts it to linear RGB, reduced to at
     /// most [`MAX_KEPT_TEXELS`]. The header's size is checked first: the
     /// decoded image and the kept texels, with `in_use` bytes already
     /// held, must fit `memory_budget`.
     pub fn decode(bytes: &[u8], memory_budget: u64, in_use: u64) -> Result<Texture, String> {
-        let reader = || {
-            let mut reader = image::ImageReader::new(Cursor::new(bytes))
-                .with_guessed_format()
-                .map_err(|e| e.to_string())?;
-            if reader.format().is_none() {
-                return Err("not a PNG or JPEG image".to_string());
-            }
-            let mut limits = image::Limits::default();
-            limits.max_alloc = Some(MAX_DECODE_BYTES.min(memory_budget));
-            reader.limits(limits);
-            Ok(reader)
-        };
-        let decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
-        let (width, height) = image::ImageDecoder::dimensions(&decoder);
-        let decoded = image::ImageDecoder::total_bytes(&decoder);
-        drop(decoder);
-        if u64::from(width) * u64::from(height) > MAX_TEXELS {
-            return Err(format!(
-                "{width}×{height} texels exceed the limit of {MAX_TEXELS}"
-            ));
-        }
-        let (w, h) = (width as usize, height as usize);
-        let (kw, kh, _) = reduction(w, h);
-        let need = decoded
-            .saturating_add(Self::bytes_of(kw * kh))
-            .saturating_add(in_use);
-        if need > memory_budget || decoded > MAX_DECODE_BYTES {
-            return Err(format!(
-                "{width}×{height} texels need {} to decode{}, over the memory budget of {} \
-                 (raise --memory-budget or use a smaller image)",
-                human_bytes(need),
-                match in_use {
-                    0 => String::new(),
-                    b => format!(
-                        " besides the {} the textures before it keep",
-                        human_bytes(b)
-                    ),
-                },
-                human_bytes(memory_budget.min(MAX_DECODE_BYTES))
-            ));
-        }
-        let image = reader()?.decode().map_err(|e| e.to_string())?;
+        check_header(
+            image_reader(Cursor::new(bytes), memory_budget)?,
+            memory_budget,
+            in_use,
+        )?;
+        let image = image_reader(Cursor::new(bytes), memory_budget)?
+            .decode()
+            .map_err(|e| e.to_string())?;
         Self::reduced(&image)
     }
 

@@ -70,6 +70,8 @@ pub(super) fn solve(
     )?;
     report.times.mesh = Some(secs(t));
     drop(phase);
+    // The images too, before the form factors take their time.
+    settings.check_image_memory(&view, settings.matrix.memory_budget)?;
 
     let t = Instant::now();
     let (matrix, stats) = FormFactorMatrix::assemble(&mesh, &bvh, &settings.matrix, progress)?;

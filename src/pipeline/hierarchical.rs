@@ -33,6 +33,7 @@ pub(super) fn solve(
     let start = Instant::now();
     let mut report = new_report(scene, settings);
     let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
+    settings.check_image_memory(&view, settings.hierarchical.memory_budget)?;
     // Before any work: a uniform output mesh of a given size must fit.
     settings
         .mesh

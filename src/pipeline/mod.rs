@@ -31,7 +31,7 @@ use crate::output::exr::{ImageInfo, Quantity};
 use crate::output::{self, OutputSet};
 use crate::render::RenderSettings;
 use crate::render::frame::Frame;
-use crate::render::view::{View, ViewOverrides};
+use crate::render::view::{FRAME_BYTES_PER_PIXEL, View, ViewOverrides};
 use crate::render::wireframe;
 use crate::report::{ConvergenceReport, FileRecord, HistoryEntry, Report};
 use crate::scene::Scene;
@@ -129,6 +129,31 @@ pub struct SolveSettings {
 }
 
 impl SolveSettings {
+    /// Refuses, before any work, a solve whose images would not fit
+    /// `memory_budget`: the render of `view`, the snapshots (a frame
+    /// each) and the lightmap atlases.
+    pub fn check_image_memory(&self, view: &View, memory_budget: u64) -> Result<()> {
+        let mut more = Vec::new();
+        let mut snapshots = self.snapshots.clone();
+        snapshots.sort_unstable();
+        snapshots.dedup();
+        if !snapshots.is_empty() {
+            more.push((
+                format!("its {} snapshots (--snapshots)", snapshots.len()),
+                (snapshots.len() as u64)
+                    .saturating_mul(view.pixels())
+                    .saturating_mul(FRAME_BYTES_PER_PIXEL),
+            ));
+        }
+        if let Some(resolution) = self.lightmap {
+            more.push((
+                format!("the lightmaps (--lightmap {resolution})"),
+                u64::from(resolution).pow(2) * crate::lightmap::BYTES_PER_TEXEL,
+            ));
+        }
+        view.check_memory(&self.view, &more, memory_budget)
+    }
+
     /// Checks every part the method uses (its thresholds, kernel, mesh and
     /// convergence settings) and that the options fit the method. The
     /// error names the command-line option.

@@ -13,6 +13,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use crate::classic::uniform::human_bytes;
 use crate::error::{Error, Result};
 use crate::scene::Camera;
 
@@ -22,6 +23,12 @@ pub const DEFAULT_WIDTH: u32 = 512;
 pub const DEFAULT_FOV_DEG: f64 = 45.0;
 /// Largest image side accepted.
 pub const MAX_SIDE: u32 = 16_384;
+/// Bytes a render holds per pixel at most: each pixel's mean and sample
+/// spread (32 bytes, twice while the rows are joined), the frame (12), its
+/// encodings (up to 24) and a wireframe's coverage (4), rounded up.
+pub const RENDER_BYTES_PER_PIXEL: u64 = 128;
+/// Bytes a finished frame holds per pixel (linear RGB f32).
+pub const FRAME_BYTES_PER_PIXEL: u64 = 12;
 
 /// Command-line overrides of the view; any subset may be given.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -127,6 +134,52 @@ impl View {
             width,
             height,
         })
+    }
+
+    /// Pixels of the image.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// Refuses, before anything is rendered, a view whose render, with
+    /// the `more` images held beside it (what they are, for the message,
+    /// and their bytes), would need more than `memory_budget`. The error
+    /// names the flags that fixed the size (`o`) and what each part needs.
+    pub fn check_memory(
+        &self,
+        o: &ViewOverrides,
+        more: &[(String, u64)],
+        memory_budget: u64,
+    ) -> Result<()> {
+        let render = self.pixels().saturating_mul(RENDER_BYTES_PER_PIXEL);
+        let total = more
+            .iter()
+            .fold(render, |t, (_, bytes)| t.saturating_add(*bytes));
+        if total <= memory_budget {
+            return Ok(());
+        }
+        let source = match (o.width, o.height) {
+            (Some(w), Some(h)) => format!("--width {w} --height {h}"),
+            (Some(w), None) => format!("--width {w} and the camera's aspect ratio"),
+            (None, Some(h)) => format!("--height {h} and the camera's aspect ratio"),
+            (None, None) => format!("the default width {DEFAULT_WIDTH}, the camera's aspect ratio"),
+        };
+        let mut message = format!(
+            "the {} × {} render ({source}) needs {}",
+            self.width,
+            self.height,
+            human_bytes(render)
+        );
+        for (what, bytes) in more {
+            message.push_str(&format!(", {what} {}", human_bytes(*bytes)));
+        }
+        if !more.is_empty() {
+            message.push_str(&format!(": {} in all", human_bytes(total)));
+        }
+        Err(Error::Setting(format!(
+            "{message}, over the memory budget of {} (raise --memory-budget or ask for fewer pixels)",
+            human_bytes(memory_budget)
+        )))
     }
 
     /// The ray through image point (x, y) (pixels, row 0 at the top):
