@@ -189,11 +189,15 @@ fn spent_time_budget_solves_the_first_links() {
     assert_eq!(free_mesh.late_evaluations, 0);
     let said = |run: &SolveRun, what: &str| run.report.warnings.iter().any(|w| w.starts_with(what));
     assert!(
-        said(&r, "output mesh:") && said(&r, "render:") && said(&r, "hierarchical: 0 of"),
+        said(&r, "output mesh:")
+            && said(&r, "render:")
+            && said(&r, "hierarchical: 0 of")
+            && said(&r, "shadow lines:"),
         "{:?}",
         r.report.warnings
     );
     assert!(!said(&free, "output mesh:") && !said(&free, "render:"));
+    assert!(!said(&free, "shadow lines:") && !said(&free, "hierarchical: 0 of"));
     // No correction pass began after the budget was spent.
     assert!(r.report.correction.is_none());
     assert!(free.report.correction.is_some_and(|c| !c.passes.is_empty()));

@@ -6,7 +6,8 @@
 //!
 //! Owns: the public results ([`Segment`], [`SegmentKind`],
 //! [`Discontinuities`], [`DiscontinuityStats`]), the knobs
-//! ([`DiscontinuitySettings`]), the driver [`discontinuity_segments`] and the
+//! ([`DiscontinuitySettings`]), the drivers [`discontinuity_segments`] and
+//! [`discontinuity_segments_until`] (the same within a deadline), and the
 //! plane tolerances the submodules share.
 //!
 //! The steps, one submodule each (read in this order):
@@ -60,6 +61,8 @@ mod receivers;
 mod silhouettes;
 mod trace;
 mod wedges;
+
+use std::time::Instant;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -153,6 +156,9 @@ pub struct DiscontinuityStats {
     pub raw_segments: usize,
     /// Segments removed by `max_segments`.
     pub dropped_by_budget: usize,
+    /// Wedge jobs (luminaire, silhouette feature) left untraced because
+    /// the deadline had passed.
+    pub late_jobs: usize,
 }
 
 /// The segments, ordered by patch, and the counters.
@@ -185,6 +191,19 @@ pub fn discontinuity_segments(
     bvh: &TriangleBvh,
     settings: &DiscontinuitySettings,
 ) -> Discontinuities {
+    discontinuity_segments_until(scene, bvh, settings, None)
+}
+
+/// [`discontinuity_segments`] within a time budget that ends at `deadline`:
+/// wedge jobs that begin after it trace nothing (counted in
+/// `stats.late_jobs`), so which D1 segments a late run finds depends on the
+/// clock.
+pub fn discontinuity_segments_until(
+    scene: &Scene,
+    bvh: &TriangleBvh,
+    settings: &DiscontinuitySettings,
+    deadline: Option<Instant>,
+) -> Discontinuities {
     let ctx = Context::new(scene, bvh, settings);
     let mut stats = DiscontinuityStats {
         luminaires: ctx.luminaires.len(),
@@ -196,11 +215,16 @@ pub fn discontinuity_segments(
         let jobs: Vec<(usize, Job)> = (0..ctx.luminaires.len())
             .flat_map(|l| ctx.jobs(l, &mut stats).into_iter().map(move |j| (l, j)))
             .collect();
-        let traced: Vec<Traced> = jobs
+        let late = || deadline.is_some_and(|d| Instant::now() >= d);
+        let traced: Vec<Option<Traced>> = jobs
             .par_iter()
-            .map(|&(l, job)| ctx.run_job(l, job))
+            .map(|&(l, job)| (!late()).then(|| ctx.run_job(l, job)))
             .collect();
         for t in traced {
+            let Some(t) = t else {
+                stats.late_jobs += 1;
+                continue;
+            };
             raw.extend(t.segments);
             stats.wedges += t.wedges;
             stats.rays += t.rays;

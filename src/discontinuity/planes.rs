@@ -13,11 +13,11 @@
 //! and the caller applies its exact per-receiver tests, so the result is
 //! the one testing every receiver would give.
 
-use glam::{DVec3, Vec3A};
-use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::Bvh2, bvh2::builder::build_bvh2};
+use glam::DVec3;
 
 use super::clip::Bounds;
 use super::receivers::Receiver;
+use crate::util::boxes::BoxTree;
 
 /// Normals are grouped on a grid of this step (a key, not a tolerance: the
 /// slack keeps every query exact).
@@ -48,43 +48,15 @@ struct Group {
     /// Receiver indices, ascending.
     members: Vec<u32>,
     /// Over the members' boxes, when there are more than [`SCAN`].
-    tree: Option<Bvh2>,
+    tree: Option<BoxTree>,
 }
 
 /// The receivers of one run, grouped by plane.
 pub(super) struct ReceiverIndex {
     groups: Vec<Group>,
     /// Over the groups' boxes, when there are more than [`SCAN`].
-    tree: Option<Bvh2>,
+    tree: Option<BoxTree>,
     group_boxes: Vec<Bounds>,
-}
-
-/// An f32 box holding `b` (rounded outwards).
-fn outer_box(b: &Bounds) -> Aabb {
-    let pad = (b.hi - b.lo).max_element() * 1e-6 + b.lo.abs().max(b.hi.abs()).max_element() * 1e-6;
-    Aabb::new(
-        Vec3A::from((b.lo - pad).as_vec3()),
-        Vec3A::from((b.hi + pad).as_vec3()),
-    )
-}
-
-fn tree_over(boxes: impl Iterator<Item = Aabb>) -> Bvh2 {
-    let boxes: Vec<Aabb> = boxes.collect();
-    let mut time = std::time::Duration::ZERO;
-    build_bvh2(&boxes, BvhBuildParams::fast_build(), &mut time)
-}
-
-/// Calls `visit` with the primitive indices of `tree`'s leaves whose boxes
-/// overlap `query`.
-fn search(tree: &Bvh2, query: &Bounds, mut visit: impl FnMut(u32)) {
-    tree.aabb_traverse(outer_box(query), |t, node| {
-        let node = &t.nodes[node as usize];
-        let first = node.first_index as usize;
-        for &p in &t.primitive_indices[first..first + node.prim_count as usize] {
-            visit(p);
-        }
-        true
-    });
 }
 
 impl ReceiverIndex {
@@ -119,11 +91,10 @@ impl ReceiverIndex {
             let mut members: Vec<u32> = run.iter().map(|&(_, r)| r).collect();
             members.sort_unstable();
             let tree = (members.len() > SCAN).then(|| {
-                tree_over(
-                    members
-                        .iter()
-                        .map(|&r| outer_box(&receivers[r as usize].bounds)),
-                )
+                BoxTree::new(members.iter().map(|&r| {
+                    let b = &receivers[r as usize].bounds;
+                    (b.lo, b.hi)
+                }))
             });
             groups.push(Group {
                 plane: GroupPlane {
@@ -153,7 +124,7 @@ impl ReceiverIndex {
                 )
             })
             .collect();
-        let tree = (groups.len() > SCAN).then(|| tree_over(group_boxes.iter().map(outer_box)));
+        let tree = (groups.len() > SCAN).then(|| BoxTree::new(group_boxes.iter().map(|b| (b.lo, b.hi))));
         ReceiverIndex {
             groups,
             tree,
@@ -181,7 +152,7 @@ impl ReceiverIndex {
             }
             let overlaps = |r: u32| receivers[r as usize].bounds.overlaps(query);
             match &group.tree {
-                Some(tree) => search(tree, query, |i| {
+                Some(tree) => tree.overlapping(query.lo, query.hi, |i| {
                     let r = group.members[i as usize];
                     if overlaps(r) {
                         out.push(r);
@@ -191,7 +162,7 @@ impl ReceiverIndex {
             }
         };
         match &self.tree {
-            Some(tree) => search(tree, query, |g| group(g as usize)),
+            Some(tree) => tree.overlapping(query.lo, query.hi, |g| group(g as usize)),
             None => (0..self.groups.len()).for_each(&mut group),
         }
         out.sort_unstable();

@@ -48,11 +48,10 @@ impl Context<'_> {
         // `lit_through`, widened by a group's slack: true for a group when
         // it may be true for one of its members.
         let may_be_lit = |g: &GroupPlane| {
-            let (t, s) = (tol - g.slack, g.slack);
-            let base = wedge.base.map(|p| g.distance(p));
-            base.iter().any(|d| d.abs() > t)
-                && base.iter().fold(f64::MIN, |m, &d| m.max(d)) > tol - s
-                && wedge.source.iter().any(|&p| g.distance(p) > tol - s)
+            // (A feature in front is not in the plane.)
+            let t = tol - g.slack;
+            wedge.base.iter().any(|&p| g.distance(p) > t)
+                && wedge.source.iter().any(|&p| g.distance(p) > t)
         };
         let mut candidates = Vec::new();
         self.index

@@ -99,6 +99,11 @@ impl BudgetHit {
     }
 }
 
+/// The part of `--time-budget` (counted from the run's start) by whose end
+/// the shadow lines stop tracing wedges (the remaining luminaire jobs give
+/// no D1 segments; contact lines are all found).
+pub const SHADOW_SHARE: f64 = 0.15;
+
 /// The part of `--time-budget` (counted from the run's start) that
 /// linking and refinement may use; solving, the output mesh
 /// ([`MESH_SHARE`]) and the render get the rest.

@@ -5,7 +5,9 @@
 //!
 //! Invariant: refinement runs serially over candidate lists in id order;
 //! only evaluation and decisions run in parallel, each into its own slot,
-//! so links come out in the same order for any thread count.
+//! so links come out in the same order for any thread count. Under a time
+//! budget a round settles its new links in batches ([`TIMED_BATCH`]), so
+//! that it ends within one batch of the budget.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -18,6 +20,12 @@ use crate::hierarchical::oracle::{
     visibility_error,
 };
 use crate::hierarchical::solver::{Pair, Solver, scene_scales, weighted_rho};
+
+/// Under a time budget, a refinement round settles its new links in
+/// batches of at least this many pairs, reading the clock between them: one
+/// round of office-100k made millions of pairs before its first one was
+/// evaluated, and settling them ran minutes past the budget.
+const TIMED_BATCH: usize = 1 << 13;
 
 impl Solver<'_> {
     /// Carries out a split decision on the counted link (receiver `r`,
@@ -381,6 +389,15 @@ impl Solver<'_> {
                 } else if *d != Decision::Resample {
                     splits += 1;
                 }
+            }
+            // Under a time budget the round's new links are settled as they
+            // come, so that the clock, read at every split, stops the round
+            // within one batch (settling touches only receiver r, the
+            // elements split so far and their children, never the links of
+            // a receiver this loop has yet to reach; shadow splits, which
+            // may, wait for the end).
+            if self.settings.time_budget.is_some() && next.len() >= TIMED_BATCH {
+                splits += self.settle_links(std::mem::take(&mut next));
             }
         }
         self.links.resize_with(self.hierarchy.len(), Vec::new);

@@ -25,6 +25,7 @@ use crate::discontinuity::{Segment, SegmentKind};
 use crate::meshing::point_gather::{LinkRays, PointEvaluator, PointLight};
 use crate::meshing::triangulate::PatchTriangulation;
 use crate::scene::Scene;
+use crate::util::boxes::BoxTree;
 use crate::util::geometry::segment_distance;
 use crate::util::union_find::UnionFind;
 use crate::visibility::ENDPOINT_GAP;
@@ -63,9 +64,13 @@ pub(super) fn contact_points(
     tol: f64,
 ) -> Vec<Vec<DVec3>> {
     let mut add = vec![Vec::new(); tris.len()];
+    if contacts.iter().all(Vec::is_empty) {
+        return add;
+    }
+    let edges = PatchEdges::new(scene);
     for (a, segs) in contacts.iter().enumerate() {
         for s in segs {
-            let sharing = patches_along(scene, a, s, tol);
+            let sharing = edges.along(a, s, tol);
             if sharing.len() == 1 {
                 continue;
             }
@@ -87,23 +92,49 @@ pub(super) fn contact_points(
     add
 }
 
-/// Patch `a`, then every other patch with an edge along its contact
-/// segment `s` (the segment's midpoint on the edge, its ends on the edge's
-/// line), in patch order.
-fn patches_along(scene: &Scene, a: usize, s: &Segment, tol: f64) -> Vec<usize> {
-    let mid = 0.5 * (s.a + s.b);
-    let mut sharing = vec![a];
-    sharing.extend((0..scene.patches.len()).filter(|&b| {
-        let vs = scene.patches[b].vertices();
-        b != a
-            && (0..vs.len()).any(|i| {
-                let (p, q) = (vs[i], vs[(i + 1) % vs.len()]);
-                let line = (q - p).normalize_or_zero();
-                let off_line = |x: DVec3| (x - p - (x - p).dot(line) * line).length();
-                segment_distance(mid, p, q) <= tol && off_line(s.a) <= tol && off_line(s.b) <= tol
-            })
-    }));
-    sharing
+/// Every patch edge (patch, ends), with a tree over their boxes.
+struct PatchEdges {
+    edges: Vec<(usize, DVec3, DVec3)>,
+    tree: BoxTree,
+}
+
+impl PatchEdges {
+    fn new(scene: &Scene) -> PatchEdges {
+        let mut edges = Vec::new();
+        for (b, patch) in scene.patches.iter().enumerate() {
+            let vs = patch.vertices();
+            for i in 0..vs.len() {
+                edges.push((b, vs[i], vs[(i + 1) % vs.len()]));
+            }
+        }
+        let tree = BoxTree::new(edges.iter().map(|&(_, p, q)| (p.min(q), p.max(q))));
+        PatchEdges { edges, tree }
+    }
+
+    /// Patch `a`, then every other patch with an edge along its contact
+    /// segment `s` (the segment's midpoint on the edge, its ends on the
+    /// edge's line), in patch order.
+    fn along(&self, a: usize, s: &Segment, tol: f64) -> Vec<usize> {
+        let mid = 0.5 * (s.a + s.b);
+        let mut sharing = Vec::new();
+        let reach = DVec3::splat(tol);
+        self.tree.overlapping(mid - reach, mid + reach, |e| {
+            let (b, p, q) = self.edges[e as usize];
+            let line = (q - p).normalize_or_zero();
+            let off_line = |x: DVec3| (x - p - (x - p).dot(line) * line).length();
+            if b != a
+                && segment_distance(mid, p, q) <= tol
+                && off_line(s.a) <= tol
+                && off_line(s.b) <= tol
+            {
+                sharing.push(b);
+            }
+        });
+        sharing.sort_unstable();
+        sharing.dedup();
+        sharing.insert(0, a);
+        sharing
+    }
 }
 
 /// A vertex side to evaluate on a contact line: `None` for the vertex

@@ -12,9 +12,9 @@ use rayon::prelude::*;
 use serde_json::json;
 
 use super::{SolveRun, SolveSettings, convergence_report, finish, new_report, secs};
-use crate::discontinuity::discontinuity_segments;
+use crate::discontinuity::discontinuity_segments_until;
 use crate::error::Result;
-use crate::hierarchical::budget::{MESH_SHARE, REFINE_SHARE};
+use crate::hierarchical::budget::{MESH_SHARE, REFINE_SHARE, SHADOW_SHARE};
 use crate::hierarchical::{HierarchicalSettings, HierarchicalSolution, solve_hierarchical_guided};
 use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::render::render_until;
@@ -45,21 +45,9 @@ pub(super) fn solve(
     report.times.bvh = secs(t);
     drop(phase);
 
-    // The discontinuity mesh's segments also guide the refinement.
-    let guide = if settings.mesh.mode == MeshMode::Discontinuity {
-        let _phase = progress.spinner("shadow lines");
-        let t = Instant::now();
-        let guide = discontinuity_segments(scene, &bvh, &settings.discontinuity)
-            .by_patch(scene.patches.len());
-        report.times.discontinuities = Some(secs(t));
-        guide
-    } else {
-        Vec::new()
-    };
-
-    // `--time-budget` bounds the whole run: refinement stops at its
-    // REFINE_SHARE (its own clock starts now), the output mesh at
-    // MESH_SHARE, the render at its end.
+    // `--time-budget` bounds the whole run: wedge traces stop at its
+    // SHADOW_SHARE, refinement at REFINE_SHARE (its own clock starts at
+    // the solve), the output mesh at MESH_SHARE, the render at its end.
     let budget = settings.hierarchical.time_budget;
     let at = |share: f64| {
         budget.and_then(|t| {
@@ -68,6 +56,27 @@ pub(super) fn solve(
                 .and_then(|d| start.checked_add(d))
         })
     };
+
+    // The discontinuity mesh's segments also guide the refinement.
+    let guide = if settings.mesh.mode == MeshMode::Discontinuity {
+        let _phase = progress.spinner("shadow lines");
+        let t = Instant::now();
+        let found =
+            discontinuity_segments_until(scene, &bvh, &settings.discontinuity, at(SHADOW_SHARE));
+        report.times.discontinuities = Some(secs(t));
+        if found.stats.late_jobs > 0 {
+            report.warnings.push(format!(
+                "shadow lines: {} wedge jobs were not traced: the time budget's share ({:.0} %) \
+                 for them was spent",
+                found.stats.late_jobs,
+                100.0 * SHADOW_SHARE
+            ));
+        }
+        found.by_patch(scene.patches.len())
+    } else {
+        Vec::new()
+    };
+
     let mut hs = settings.hierarchical.clone();
     hs.time_budget = budget.map(|t| (t * REFINE_SHARE - start.elapsed().as_secs_f64()).max(0.0));
     if settings.importance {

@@ -1,6 +1,7 @@
-//! Domain-free helpers: geometry, disjoint sets, named tolerances and
+//! Domain-free helpers: geometry, box searches, disjoint sets, named tolerances and
 //! progress reporting. Nothing here knows of scenes, patches or light.
 
+pub mod boxes;
 pub mod geometry;
 pub mod progress;
 pub mod tolerance;

@@ -14,7 +14,7 @@
 //!   (the nearest);
 //! - each edge's list is sorted along the edge, ties by id, without repeats.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use glam::{DVec3, Vec3A};
 use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2, ray::Ray};
@@ -29,42 +29,100 @@ use crate::util::union_find::UnionFind;
 /// of the edge parameter): far above f32 rounding, far below any tolerance.
 const SEARCH_SLACK: f64 = 1e-5;
 
+/// The welded points at one exact position, by weld group: what a later
+/// point needs to decide whether it reaches the group here.
+struct AtSite {
+    /// A member of the group (its representative when last looked at).
+    member: usize,
+    /// The largest radius of the group's corners here (0 if none).
+    corner_radius: f64,
+    /// The largest radius of its other points here (0 if none).
+    point_radius: f64,
+}
+
 /// Welds points closer than the smaller of their radii, or [`CORNER`] times
 /// that when one of them is a corner (union-find, the smallest index
 /// represents a group). Two groups whose corner owners
 /// (patch ids) intersect are never merged: a patch keeps its corners apart.
 /// Returns the representative of each point.
+///
+/// Points at one exact position (a site) are met once per weld group there,
+/// not once each, and owner sets are hash sets merged small into large, so
+/// a position many patches share (a fan's centre) costs about linear work.
+/// Without owner conflicts the groups are the connected components of the
+/// "within reach" pairs, whatever the order they are met in.
 fn weld(points: &[DVec3], radius: &[f64], owner: &[Option<u32>]) -> Vec<u32> {
     let n = points.len();
     let cell = CORNER * radius.iter().copied().fold(f64::MIN_POSITIVE, f64::max);
     let mut grid = Grid3::new(cell);
     let mut groups = UnionFind::new(n);
-    let mut owners: Vec<Vec<u32>> = owner.iter().map(|o| o.iter().copied().collect()).collect();
+    let mut owners: Vec<HashSet<u32>> = owner.iter().map(|o| o.iter().copied().collect()).collect();
+    let mut site_of: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut sites: Vec<(DVec3, Vec<AtSite>)> = Vec::new();
     let mut near = Vec::new();
     for i in 0..n {
         let p = points[i];
         grid.query(p, CORNER * radius[i], &mut near);
-        for &j in &near {
-            let j = j as usize;
-            // Corners attract from further away than ordinary points.
-            let reach = if owner[i].is_some() || owner[j].is_some() {
-                CORNER
-            } else {
-                1.0
-            };
-            if (points[j] - p).length() > reach * radius[i].min(radius[j]) {
-                continue;
+        for &s in &near {
+            let (q, at) = &mut sites[s as usize];
+            let d = (*q - p).length();
+            // Canonical members, one entry a group.
+            for a in at.iter_mut() {
+                a.member = groups.find(a.member);
             }
-            let (ri, rj) = (groups.find(i), groups.find(j));
-            if ri == rj || owners[ri].iter().any(|o| owners[rj].contains(o)) {
-                continue;
+            at.sort_by_key(|a| a.member);
+            at.dedup_by(|b, a| {
+                let same = a.member == b.member;
+                if same {
+                    a.corner_radius = a.corner_radius.max(b.corner_radius);
+                    a.point_radius = a.point_radius.max(b.point_radius);
+                }
+                same
+            });
+            for a in at.iter() {
+                // Corners attract from further away than ordinary points.
+                let reaches = if owner[i].is_some() {
+                    d <= CORNER * radius[i].min(a.corner_radius.max(a.point_radius))
+                } else {
+                    d <= CORNER * radius[i].min(a.corner_radius)
+                        || d <= radius[i].min(a.point_radius)
+                };
+                if !reaches {
+                    continue;
+                }
+                let (ri, rj) = (groups.find(i), groups.find(a.member));
+                if ri == rj {
+                    continue;
+                }
+                let (small, large) = if owners[ri].len() <= owners[rj].len() {
+                    (ri, rj)
+                } else {
+                    (rj, ri)
+                };
+                if owners[small].iter().any(|o| owners[large].contains(o)) {
+                    continue;
+                }
+                let keep = groups.union(ri, rj);
+                let mut merged = std::mem::take(&mut owners[large]);
+                merged.extend(std::mem::take(&mut owners[small]));
+                owners[keep] = merged;
             }
-            let keep = groups.union(ri, rj);
-            let drop = ri.max(rj);
-            let moved = std::mem::take(&mut owners[drop]);
-            owners[keep].extend(moved);
         }
-        grid.insert_box(p, p, i as u32);
+        let key = p.to_array().map(f64::to_bits);
+        let s = *site_of.entry(key).or_insert_with(|| {
+            sites.push((p, Vec::new()));
+            grid.insert_box(p, p, sites.len() as u32 - 1);
+            sites.len() as u32 - 1
+        });
+        let (corner_radius, point_radius) = match owner[i] {
+            Some(_) => (radius[i], 0.0),
+            None => (0.0, radius[i]),
+        };
+        sites[s as usize].1.push(AtSite {
+            member: i,
+            corner_radius,
+            point_radius,
+        });
     }
     (0..n).map(|i| groups.find(i) as u32).collect()
 }
