@@ -195,8 +195,9 @@ pub struct HierarchicalArgs {
     /// patches or more.
     #[arg(hide_short_help = true, long, value_enum, default_value_t = Clustering::Auto)]
     pub clustering: Clustering,
-    /// Seconds the whole run may take, roughly: linking and refinement stop
-    /// at 40 % of it (the links as they are get solved), the output mesh's
+    /// Seconds the whole run may take, roughly: shadow-line wedges stop at
+    /// 15 % of it, refinement and correction passes at 40 % (the links as
+    /// they are get solved), the output mesh's
     /// points after 80 % take their leaf's value without rays, and render
     /// rows after 100 % take one sample a pixel (the report says which);
     /// results then depend on the machine's speed.

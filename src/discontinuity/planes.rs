@@ -124,7 +124,8 @@ impl ReceiverIndex {
                 )
             })
             .collect();
-        let tree = (groups.len() > SCAN).then(|| BoxTree::new(group_boxes.iter().map(|b| (b.lo, b.hi))));
+        let tree =
+            (groups.len() > SCAN).then(|| BoxTree::new(group_boxes.iter().map(|b| (b.lo, b.hi))));
         ReceiverIndex {
             groups,
             tree,

@@ -397,6 +397,7 @@ impl Solver<'_> {
             // a receiver this loop has yet to reach; shadow splits, which
             // may, wait for the end).
             if self.settings.time_budget.is_some() && next.len() >= TIMED_BATCH {
+                self.links.resize_with(self.hierarchy.len(), Vec::new);
                 splits += self.settle_links(std::mem::take(&mut next));
             }
         }

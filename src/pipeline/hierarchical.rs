@@ -66,8 +66,8 @@ pub(super) fn solve(
         report.times.discontinuities = Some(secs(t));
         if found.stats.late_jobs > 0 {
             report.warnings.push(format!(
-                "shadow lines: {} wedge jobs were not traced: the time budget's share ({:.0} %) \
-                 for them was spent",
+                "shadow lines: {} wedge jobs were not traced: their share ({:.0} %) of \
+                 --time-budget was spent",
                 found.stats.late_jobs,
                 100.0 * SHADOW_SHARE
             ));

@@ -24,6 +24,8 @@ pub fn outer_aabb(lo: DVec3, hi: DVec3) -> Aabb {
 
 /// A tree over boxes, numbered in the order given.
 pub struct BoxTree {
+    /// The boxes, rounded out, in the order given.
+    boxes: Vec<Aabb>,
     /// None when there are no boxes.
     tree: Option<Bvh2>,
 }
@@ -33,21 +35,24 @@ impl BoxTree {
     pub fn new(boxes: impl Iterator<Item = (DVec3, DVec3)>) -> BoxTree {
         let boxes: Vec<Aabb> = boxes.map(|(lo, hi)| outer_aabb(lo, hi)).collect();
         let mut time = std::time::Duration::ZERO;
-        BoxTree {
-            tree: (!boxes.is_empty())
-                .then(|| build_bvh2(&boxes, BvhBuildParams::fast_build(), &mut time)),
-        }
+        let tree = (!boxes.is_empty())
+            .then(|| build_bvh2(&boxes, BvhBuildParams::fast_build(), &mut time));
+        BoxTree { boxes, tree }
     }
 
     /// Calls `visit` with the number of every box that may overlap
     /// `lo`–`hi`, each once, in no particular order.
     pub fn overlapping(&self, lo: DVec3, hi: DVec3, mut visit: impl FnMut(u32)) {
         let Some(tree) = &self.tree else { return };
-        tree.aabb_traverse(outer_aabb(lo, hi), |t, node| {
+        let query = outer_aabb(lo, hi);
+        tree.aabb_traverse(query, |t, node| {
             let node = &t.nodes[node as usize];
             let first = node.first_index as usize;
             for &p in &t.primitive_indices[first..first + node.prim_count as usize] {
-                visit(p);
+                // A leaf holds several boxes: each is tested on its own.
+                if self.boxes[p as usize].intersect_aabb(&query) {
+                    visit(p);
+                }
             }
             true
         });
@@ -70,11 +75,9 @@ mod tests {
             .collect();
         let tree = BoxTree::new(boxes.iter().copied());
         let mut found = Vec::new();
-        tree.overlapping(
-            DVec3::new(2.5, 2.5, 0.5),
-            DVec3::new(4.5, 4.5, 0.5),
-            |i| found.push(i),
-        );
+        tree.overlapping(DVec3::new(2.5, 2.5, 0.5), DVec3::new(4.5, 4.5, 0.5), |i| {
+            found.push(i)
+        });
         found.sort_unstable();
         assert_eq!(found, [11, 12, 21, 22]);
         found.clear();
