@@ -20,7 +20,7 @@ use crate::fixtures::{assert_user_error, bundled_scene, cornell, nusselt, on_thr
 /// included), a tiny image.
 fn settings(budget: impl FnOnce(&mut HierarchicalSettings)) -> SolveSettings {
     let mut s = SolveSettings {
-        render: RenderSettings::with_samples(1, 0),
+        render: RenderSettings::with_samples(4, 0),
         view: ViewOverrides {
             width: Some(16),
             height: Some(16),

@@ -14,7 +14,7 @@ use serde_json::json;
 use super::{SolveRun, SolveSettings, convergence_report, finish, new_report, secs};
 use crate::discontinuity::discontinuity_segments_until;
 use crate::error::Result;
-use crate::hierarchical::budget::{MESH_SHARE, REFINE_SHARE, SHADOW_SHARE};
+use crate::hierarchical::budget::{MESH_SHARE, REFINE_SHARE, RENDER_SHARE, SHADOW_SHARE};
 use crate::hierarchical::{HierarchicalSettings, HierarchicalSolution, solve_hierarchical_guided};
 use crate::meshing::{MeshMode, MeshSettings, build_mesh};
 use crate::render::render_until;
@@ -47,7 +47,8 @@ pub(super) fn solve(
 
     // `--time-budget` bounds the whole run: wedge traces stop at its
     // SHADOW_SHARE, refinement at REFINE_SHARE (its own clock starts at
-    // the solve), the output mesh at MESH_SHARE, the render at its end.
+    // the solve), the output mesh at MESH_SHARE, the render at
+    // RENDER_SHARE; writing takes the rest.
     let budget = settings.hierarchical.time_budget;
     let at = |share: f64| {
         budget.and_then(|t| {
@@ -105,7 +106,7 @@ pub(super) fn solve(
     report.mesh = Some(mesh_stats);
 
     let t = Instant::now();
-    let (frame, short) = render_until(&out, &view, &settings.render, progress, at(1.0));
+    let (frame, short) = render_until(&out, &view, &settings.render, progress, at(RENDER_SHARE));
     report.times.render += secs(t);
     if short > 0 {
         report.warnings.push(format!(

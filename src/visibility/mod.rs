@@ -22,7 +22,6 @@ use obvhs::{
     aabb::Aabb,
     bvh2::reinsertion::ReinsertionOptimizer,
     cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
-    ploc::PlocBuilder,
     ray::{Ray, RayHit},
     splits::{split_aabbs_precise, split_aabbs_preset},
     triangle::Triangle,
@@ -137,13 +136,7 @@ fn build(tris: &[Triangle]) -> CwBvh {
         aabbs.extend_from_slice(&pieces[positions.len()..]);
         indices.extend_from_slice(&of[positions.len()..]);
     }
-    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
-        params.ploc_search_distance,
-        &aabbs,
-        indices,
-        params.sort_precision,
-        params.search_depth_threshold,
-    );
+    let mut bvh2 = crate::util::boxes::ploc(&aabbs, indices, &params);
     bvh2.uses_spatial_splits = true;
     ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
     bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false)

@@ -11,7 +11,7 @@
 use std::time::Duration;
 
 use glam::{DVec2, DVec3, Vec3A};
-use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2};
+use obvhs::{BvhBuildParams, aabb::Aabb};
 
 use super::Node;
 use super::lobes::{Lobes, normal_lobes};
@@ -136,8 +136,7 @@ impl ClusterTree {
                 max_prims_per_leaf: 1,
                 ..BvhBuildParams::fast_build()
             };
-            let mut core = Duration::ZERO;
-            let bvh = build_bvh2(&boxes, params, &mut core);
+            let bvh = crate::util::boxes::build_bvh2(&boxes, params);
             tree.root = Some(tree.add_node(scene, &bvh, 0));
         }
         let mut sum = 0.0;

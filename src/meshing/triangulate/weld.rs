@@ -17,7 +17,7 @@
 use std::collections::{HashMap, HashSet};
 
 use glam::{DVec3, Vec3A};
-use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2, ray::Ray};
+use obvhs::{BvhBuildParams, aabb::Aabb, ray::Ray};
 use rayon::prelude::*;
 
 use super::frame::LocalPatch;
@@ -147,8 +147,7 @@ fn near_pairs(points: &[DVec3], edges: &[EdgeRef], r: f64, diagonal: f64) -> Vec
             )
         })
         .collect();
-    let mut time = std::time::Duration::ZERO;
-    let tree = build_bvh2(&boxes, BvhBuildParams::fast_build(), &mut time);
+    let tree = crate::util::boxes::build_bvh2(&boxes, BvhBuildParams::fast_build());
     let mut pairs: Vec<(u32, u32)> = edges
         .par_iter()
         .enumerate()
