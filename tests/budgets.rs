@@ -157,13 +157,13 @@ fn spent_time_budget_solves_the_first_links() {
     let scene = cornell();
     let free = run(&scene, &settings(|h| h.clustering = Clustering::On));
     assert!(free.report.budget.is_none());
-    let r = run(
-        &scene,
-        &settings(|h| {
-            h.clustering = Clustering::On;
-            h.time_budget = Some(1e-9);
-        }),
-    );
+    let mut spent = settings(|h| {
+        h.clustering = Clustering::On;
+        h.time_budget = Some(1e-9);
+    });
+    // More rows than a budgeted render always samples (16).
+    spent.view.height = Some(48);
+    let r = run(&scene, &spent);
     let hit = hit(&r);
     assert_eq!(hit.kind, Budget::Time);
     assert_eq!(hit.limit, 0);
@@ -197,6 +197,23 @@ fn spent_time_budget_solves_the_first_links() {
         r.report.warnings
     );
     assert!(!said(&free, "output mesh:") && !said(&free, "render:"));
+    // Rows begun after the budget took no sample and show their nearest
+    // rendered row: none is left black.
+    assert!(
+        r.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("got no sample")),
+        "{:?}",
+        r.report.warnings
+    );
+    let f = &r.frame;
+    for row in f.pixels.chunks(f.width as usize) {
+        assert!(
+            row.iter().any(|p| p.iter().any(|&c| c > 0.0)),
+            "a black row"
+        );
+    }
     assert!(!said(&free, "shadow lines:") && !said(&free, "hierarchical: 0 of"));
     // No correction pass began after the budget was spent.
     assert!(r.report.correction.is_none());

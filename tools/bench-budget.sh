@@ -5,18 +5,20 @@
 # phase from report.json), output vertices and peak memory. Scenes: the
 # fans and offices of `gen-scenes --fan N DIR` and `--scale N DIR`,
 # smallest first. A refused run (a memory budget, say) prints its error.
-# Usage: bash tools/bench-budget.sh SECONDS SCENE.gltf ...   (from the repository root)
+# Usage: bash tools/bench-budget.sh SECONDS SCENE.gltf ...   (from the repository root;
+# NUSSELT_BIN=PATH runs that binary instead of building one)
 set -euo pipefail
 budget="$1"
 shift
-cargo build --release --quiet
+bin="${NUSSELT_BIN:-target/release/nusselt}"
+[ -n "${NUSSELT_BIN:-}" ] || [ -n "${NUSSELT_BIN:-}" ] || cargo build --release --quiet
 scratch="$(mktemp -d)"
 trap 'rm -rf "$scratch"' EXIT
 echo "| scene | triangles | budget | wall | load | occluder BVH | shadow lines | linking | refinement | solve | output mesh | render | write | output vertices | peak MiB |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 for scene in "$@"; do
     out="$scratch/out"
-    if ! /usr/bin/time -f "%e %M" -o "$scratch/time" target/release/nusselt solve "$scene" \
+    if ! /usr/bin/time -f "%e %M" -o "$scratch/time" "$bin" solve "$scene" \
         -o "$out" --quiet --time-budget "$budget" 2> "$scratch/err"; then
         echo "| $(basename "$scene") | | $budget | $(tail -1 "$scratch/err") |"
         continue

@@ -106,12 +106,19 @@ pub(super) fn solve(
     report.mesh = Some(mesh_stats);
 
     let t = Instant::now();
-    let (frame, short) = render_until(&out, &view, &settings.render, progress, at(RENDER_SHARE));
+    let (frame, short, skipped) =
+        render_until(&out, &view, &settings.render, progress, at(RENDER_SHARE));
     report.times.render += secs(t);
+    let pixels = u64::from(view.width) * u64::from(view.height);
     if short > 0 {
         report.warnings.push(format!(
-            "render: {short} of {} pixels got fewer samples than asked: the time budget was spent",
-            u64::from(view.width) * u64::from(view.height)
+            "render: {short} of {pixels} pixels got fewer samples than asked: the time budget was spent",
+        ));
+    }
+    if skipped > 0 {
+        report.warnings.push(format!(
+            "render: {skipped} of {pixels} pixels got no sample and show the nearest rendered pixel \
+             of their column: the time budget was spent",
         ));
     }
     let mut snapshots = Vec::new();

@@ -98,13 +98,16 @@ pub fn render(
     render_until(mesh, view, settings, progress, None).0
 }
 
-/// [`render`] within a time budget that ends at `deadline`. Every pixel
-/// gets at least one sample; a pixel takes its full count only while the
-/// pixels not yet begun, at one sample each at the rate measured so far,
-/// would still end by the deadline, and edge pixels are sampled again only
-/// while it lasts. So the overrun is about one pixel's samples, plus the
-/// one-sample floor where even that does not fit. Returns the image and
-/// how many of its pixels got fewer samples than `settings` asks (0
+/// [`render`] within a time budget that ends at `deadline`. Rows are
+/// taken in [`spread_rows`] order. A pixel takes its full count only while
+/// the pixels not yet begun, at one sample each at the rate measured so
+/// far, would still end by the deadline, and one sample after that; a
+/// pixel begun after the deadline takes none, beyond the first
+/// [`FLOOR_ROWS`] rows, and shows the nearest rendered pixel of its
+/// column. Edge pixels are sampled again only while the deadline lasts.
+/// So the overrun is about one pixel's samples (plus the floor rows).
+/// Returns the image, how many of its pixels got fewer samples than
+/// `settings` asks but at least one, and how many got none (both 0
 /// without a deadline).
 pub fn render_until(
     mesh: &OutputMesh,
@@ -112,7 +115,7 @@ pub fn render_until(
     settings: &RenderSettings,
     progress: &Progress,
     deadline: Option<Instant>,
-) -> (Frame, u64) {
+) -> (Frame, u64, u64) {
     let short = AtomicU64::new(0);
     let bvh = mesh_bvh(mesh);
     let (w, h) = (view.width, view.height);
@@ -158,11 +161,19 @@ pub fn render_until(
     let first = side(settings.samples_per_pixel);
     let edge = side(settings.edge_samples_per_pixel);
     let phase = progress.phase("render", h as u64);
-    let mut pixels: Vec<(DVec3, f64)> = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
+    let past = || deadline.is_some_and(|d| Instant::now() >= d);
+    let skipped = AtomicU64::new(0);
+    let order = spread_rows(h);
+    let rows: Vec<Row> = order
+        .par_iter()
+        .enumerate()
+        .map(|(k, &y)| {
             let row: Vec<_> = (0..w)
                 .map(|x| {
+                    if k >= FLOOR_ROWS && past() {
+                        skipped.fetch_add(1, Ordering::Relaxed);
+                        return None;
+                    }
                     let n = match first > 1 && late() {
                         true => {
                             short.fetch_add(1, Ordering::Relaxed);
@@ -173,13 +184,14 @@ pub fn render_until(
                     begun.fetch_add(1, Ordering::Relaxed);
                     let p = pixel(x, y, n, 0x7265_6e64);
                     samples.fetch_add(u64::from(n * n), Ordering::Relaxed);
-                    p
+                    Some(p)
                 })
                 .collect();
             phase.inc(1);
-            row
+            (y, row)
         })
         .collect();
+    let mut pixels = nearest_rendered(w, h, rows);
     if edge > first && !pixels.is_empty() {
         let mean = pixels.iter().map(|(c, _)| luminance(*c)).sum::<f64>() / pixels.len() as f64;
         let limit = EDGE_SPREAD * mean;
@@ -189,7 +201,7 @@ pub fn render_until(
             .with_min_len(64)
             .for_each(|(k, p)| {
                 if p.1 > limit {
-                    if deadline.is_some_and(|d| Instant::now() >= d) {
+                    if past() {
                         short.fetch_add(1, Ordering::Relaxed);
                         return;
                     }
@@ -206,7 +218,53 @@ pub fn render_until(
             .map(|(c, _)| c.as_vec3().to_array())
             .collect(),
     };
-    (frame, short.into_inner())
+    let skipped = skipped.into_inner();
+    (frame, short.into_inner().saturating_sub(skipped), skipped)
+}
+
+/// A row's number and its pixels (each its mean and the span of its
+/// samples' luminances), None where no sample was taken.
+type Row = (u32, Vec<Option<(DVec3, f64)>>);
+
+/// Rows a budgeted render gives at least one sample a pixel, whatever the
+/// clock: the first ones of [`spread_rows`], spread over the frame.
+const FLOOR_ROWS: usize = 16;
+
+/// The rows 0..h in bit-reversed order (0, h/2, h/4, 3h/4, …): however
+/// many a time budget lets through, they are spread over the frame.
+fn spread_rows(h: u32) -> Vec<u32> {
+    let bits = h.max(1).next_power_of_two().trailing_zeros();
+    (0..h.max(1).next_power_of_two())
+        .map(|i| i.reverse_bits().checked_shr(32 - bits).unwrap_or(0))
+        .filter(|&y| y < h)
+        .collect()
+}
+
+/// The frame's pixels in row order from its rendered rows; a pixel not
+/// rendered takes the value of the nearest rendered one in its column
+/// (each column has one: [`FLOOR_ROWS`] rows are always rendered whole).
+fn nearest_rendered(w: u32, h: u32, rows: Vec<Row>) -> Vec<(DVec3, f64)> {
+    let (w, h) = (w as usize, h as usize);
+    let mut grid: Vec<Option<(DVec3, f64)>> = vec![None; w * h];
+    for (y, row) in rows {
+        grid[y as usize * w..][..w].copy_from_slice(&row);
+    }
+    let mut out = vec![(DVec3::ZERO, 0.0); w * h];
+    for x in 0..w {
+        let rendered: Vec<usize> = (0..h).filter(|&y| grid[y * w + x].is_some()).collect();
+        let mut next = 0;
+        for y in 0..h {
+            while next + 1 < rendered.len()
+                && rendered[next + 1].abs_diff(y) <= rendered[next].abs_diff(y)
+            {
+                next += 1;
+            }
+            if let Some(&from) = rendered.get(next) {
+                out[y * w + x] = grid[from * w + x].unwrap_or_default();
+            }
+        }
+    }
+    out
 }
 
 /// How many times the measured cost of a sample [`render_until`] allows
@@ -374,5 +432,35 @@ mod tests {
         let fine = at(&RenderSettings::with_samples(4, 3));
         assert!((fine - 0.6).abs() < 0.02, "edge pixel coverage {fine}");
         assert!((coarse - 0.6).abs() > (fine - 0.6).abs(), "{coarse} {fine}");
+    }
+
+    #[test]
+    fn spread_rows_take_every_row_once_coarse_ones_first() {
+        for h in [1, 2, 3, 16, 100, 512] {
+            let mut rows = spread_rows(h);
+            rows.sort_unstable();
+            assert_eq!(rows, (0..h).collect::<Vec<_>>(), "h = {h}");
+        }
+        assert_eq!(spread_rows(512)[..4], [0, 256, 128, 384]);
+        // The floor rows of a 100-row frame leave no gap over 8 rows.
+        let mut floor = spread_rows(100)[..FLOOR_ROWS].to_vec();
+        floor.sort_unstable();
+        assert!(floor.windows(2).all(|p| p[1] - p[0] <= 8), "{floor:?}");
+    }
+
+    #[test]
+    fn a_pixel_not_rendered_shows_the_nearest_rendered_one_of_its_column() {
+        let px = |v: f64| Some((DVec3::splat(v), 0.0));
+        let rows = vec![
+            (0, vec![px(0.0), px(10.0)]),
+            (3, vec![px(3.0), None]),
+            (1, vec![None, None]),
+            (2, vec![None, None]),
+            (4, vec![None, None]),
+        ];
+        let out = nearest_rendered(2, 5, rows);
+        let column = |x: usize| (0..5).map(|y| out[y * 2 + x].0.x).collect::<Vec<_>>();
+        assert_eq!(column(0), [0.0, 0.0, 3.0, 3.0, 3.0]);
+        assert_eq!(column(1), [10.0; 5]);
     }
 }
