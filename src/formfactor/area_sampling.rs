@@ -274,7 +274,7 @@ pub fn form_factor_area_sampling(
     // reading. So a pair with any occlusion (seen by the probe, or by any
     // ray of a first pass, which then starts again) has its source cut in
     // pieces from the start.
-    let mut start = match s.probe(&receiver_front, rng) {
+    let mut start = match s.probe(&receiver_front, PROBE_RAYS, rng) {
         true => OCCLUDED_START_DEPTH,
         false => 0,
     };
@@ -369,7 +369,25 @@ impl<V: Fn(DVec3, DVec3) -> bool> Sampler<'_, V> {
         let mut steps = 0usize;
         // The floor is on the whole receiver's factor (its full area).
         let floor = ABSOLUTE_FLOOR * self.receiver_area;
-        while totals.error() > tolerance * totals.value.max(floor) && self.rays < max_rays {
+        while self.rays < max_rays {
+            if start == 0 && self.blocked {
+                break; // the caller starts again with the source in pieces
+            }
+            let target = tolerance * totals.value.max(floor);
+            let unseen = self.unseen(start, totals.value);
+            let rest = totals.error();
+            if rest + unseen <= target {
+                break;
+            }
+            if unseen > rest {
+                // Cheaper than readings: probe rays until the bound fits
+                // beside the rest (in at least half the target).
+                let room = (target - rest).max(0.5 * target);
+                let wanted = (totals.value / room).ceil() as usize;
+                let n = wanted.saturating_sub(self.rays).max(PROBE_RAYS);
+                self.probe(receiver, n.min(max_rays), rng);
+                continue;
+            }
             let Some(worst) = heap.pop() else { break };
             totals.add(&worst, -1.0);
             let depth = match worst.partial {
@@ -387,7 +405,23 @@ impl<V: Fn(DVec3, DVec3) -> bool> Sampler<'_, V> {
                 totals = Totals::of(&heap);
             }
         }
-        Totals::of(&heap)
+        let mut totals = Totals::of(&heap);
+        totals.bias += self.unseen(start, totals.value);
+        totals
+    }
+
+    /// The bound on an occluder no ray met while the source is one piece:
+    /// one hiding a fraction p of the factor `value` escapes n rays with
+    /// probability (1 − p)ⁿ < e^(−pn), so a pair whose n rays all got
+    /// through states value / n for it (an occluder hiding twice that
+    /// escapes with probability e^(−2) at most). Zero once the source is
+    /// in pieces, or once a ray was blocked (the pass is then started
+    /// again).
+    fn unseen(&self, start: usize, value: f64) -> f64 {
+        match start == 0 && !self.blocked {
+            true => value / self.rays.max(1) as f64,
+            false => 0.0,
+        }
     }
 
     /// The reading at the centroid of `tri`, the source cut to `depth`.
@@ -457,19 +491,22 @@ impl<V: Fn(DVec3, DVec3) -> bool> Sampler<'_, V> {
         }
     }
 
-    /// Whether any of [`PROBE_RAYS`] rays between stratified points of
-    /// `receiver` and of the source is blocked.
-    fn probe(&mut self, receiver: &[DVec3], rng: &mut impl Rng) -> bool {
-        let from = stratified(PROBE_RAYS, rng);
-        let to = stratified(PROBE_RAYS, rng);
-        self.rays += PROBE_RAYS;
+    /// Whether any of `n` rays between stratified points of `receiver` and
+    /// of the source is blocked.
+    fn probe(&mut self, receiver: &[DVec3], n: usize, rng: &mut impl Rng) -> bool {
+        let from = stratified(n, rng);
+        let to = stratified(n, rng);
+        self.rays += n;
         let (r, s) = (
             PolygonSampler::new(receiver),
             PolygonSampler::new(self.pieces.polygon),
         );
-        from.iter()
+        let hit = from
+            .iter()
             .zip(to.iter().rev())
-            .any(|(a, b)| !(self.visible)(r.point(*a), s.point(*b)))
+            .any(|(a, b)| !(self.visible)(r.point(*a), s.point(*b)));
+        self.blocked |= hit;
+        hit
     }
 
     /// Distance from `x` to the source polygon.
