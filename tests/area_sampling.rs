@@ -240,16 +240,7 @@ fn an_occluder_every_ray_missed_shows_in_the_stated_error() {
         let x1 = (2.0 * plate[1] - x.x).min(1.0);
         let y0 = (2.0 * plate[2] - x.y).max(0.0);
         let y1 = (2.0 * plate[3] - x.y).min(1.0);
-        if x0 >= x1 || y0 >= y1 {
-            return 0.0;
-        }
-        let shadow = [
-            DVec3::new(x0, y0, c),
-            DVec3::new(x0, y1, c),
-            DVec3::new(x1, y1, c),
-            DVec3::new(x1, y0, c),
-        ];
-        form_factor_point_polygon(x, DVec3::Z, &shadow)
+        shadow_factor(x, [x0, x1, y0, y1], c)
     };
     let open = c11(1.0, 1.0, c);
     let exact = form_factor_polygon_polygon_with(&r, &s, 1e-9, 4_000_000, |x| {
@@ -286,6 +277,21 @@ fn an_occluder_every_ray_missed_shows_in_the_stated_error() {
         rays / 40
     );
     assert!(covered >= 37, "covered {covered} of 40");
+}
+
+/// The factor from `x` (facing +z) to the rectangle x0–x1 × y0–y1 of the
+/// plane z = `c` (0 when it is empty): the part of a source a plate hides.
+fn shadow_factor(x: DVec3, [x0, x1, y0, y1]: [f64; 4], c: f64) -> f64 {
+    if x0 >= x1 || y0 >= y1 {
+        return 0.0;
+    }
+    let shadow = [
+        DVec3::new(x0, y0, c),
+        DVec3::new(x0, y1, c),
+        DVec3::new(x1, y1, c),
+        DVec3::new(x1, y0, c),
+    ];
+    form_factor_point_polygon(x, DVec3::Z, &shadow)
 }
 
 /// A random rotation.
@@ -577,16 +583,7 @@ fn occluded_placement(
         let x1 = (x.x + (plate[1] - x.x) * s).min(ox + w);
         let y0 = (x.y + (plate[2] - x.y) * s).max(oy);
         let y1 = (x.y + (plate[3] - x.y) * s).min(oy + l);
-        if x0 >= x1 || y0 >= y1 {
-            return 0.0;
-        }
-        let shadow = [
-            DVec3::new(x0, y0, c),
-            DVec3::new(x0, y1, c),
-            DVec3::new(x1, y1, c),
-            DVec3::new(x1, y0, c),
-        ];
-        form_factor_point_polygon(x, DVec3::Z, &shadow)
+        shadow_factor(x, [x0, x1, y0, y1], c)
     };
     let open = form_factor_polygon_polygon(&receiver, &source, 1e-9).value;
     let exact = form_factor_polygon_polygon_with(&receiver, &source, 1e-7, 4_000_000, |x| {

@@ -198,9 +198,11 @@ pub struct HierarchicalArgs {
     /// Seconds the whole run may take, roughly: shadow-line wedges stop at
     /// 15 % of it, refinement and correction passes at 40 % (the links as
     /// they are get solved), the output mesh's
-    /// points after 80 % take their leaf's value without rays, and render
-    /// rows after 100 % take one sample a pixel (the report says which);
-    /// results then depend on the machine's speed.
+    /// points after 80 % take their leaf's value without rays, render
+    /// pixels take one sample once the rest would not otherwise end by
+    /// 95 %, and pixels begun after it none (they show the nearest rendered
+    /// pixel of their column); the report says which. Results then depend
+    /// on the machine's speed.
     #[arg(help_heading = "Budgets", long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
 
