@@ -218,8 +218,7 @@ pub fn render_until(
             .map(|(c, _)| c.as_vec3().to_array())
             .collect(),
     };
-    let skipped = skipped.into_inner();
-    (frame, short.into_inner().saturating_sub(skipped), skipped)
+    (frame, short.into_inner(), skipped.into_inner())
 }
 
 /// A row's number and its pixels (each its mean and the span of its
