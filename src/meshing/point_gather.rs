@@ -177,20 +177,20 @@ pub fn point_light(
             irradiance: DVec3::ZERO,
         };
     }
-    // The visible fraction of `polygon` (normal `n_s`) from x: exactly 1
-    // when nothing stands in the shaft between them, else by `n` rays.
-    let visible = |polygon: &[DVec3], n_s: DVec3, n: usize, stream: u32| {
+    // Whether nothing stands in the shaft between x and `polygon` (normal
+    // `n_s`): then it is wholly visible, with no ray.
+    let clear = |polygon: &[DVec3], n_s: DVec3| {
         let fronts = [(x, patch.normal), (polygon[0], n_s)];
-        if Shaft::new(&[x], polygon, &fronts).is_some_and(|s| bvh.shaft_clear(&s)) {
-            return Some(1.0);
-        }
-        let mut rng = pair_stream(seed, leaf.0, stream);
+        Shaft::new(&[x], polygon, &fronts).is_some_and(|s| bvh.shaft_clear(&s))
+    };
+    // The kernel-weighted sums (all, seen) of `n` rays from x to
+    // stratified points of `polygon`, drawn from `rng`.
+    let rays = |polygon: &[DVec3], n_s: DVec3, n: usize, rng: &mut _| {
         let sampler = PolygonSampler::new(polygon);
-        let targets = stratified(n, &mut rng)
+        let targets = stratified(n, rng)
             .into_iter()
             .map(|t| (x, sampler.point(t)));
-        let (total, seen) = weighted_visibility(bvh, targets, patch.normal, n_s);
-        (total > 0.0).then(|| seen / total)
+        weighted_visibility(bvh, targets, patch.normal, n_s)
     };
     let t = &solution.thresholds;
     let dim_light = DIM_LINK_FRACTION * t.bf_eps * receiver_threshold(t, e);
@@ -202,21 +202,29 @@ pub fn point_light(
             continue;
         }
         let f = form_factor_point_polygon(x, patch.normal, emitter.vertices());
-        if f > 0.0 {
+        if !(f > 0.0) {
+            continue;
+        }
+        let (polygon, n_s) = (emitter.vertices(), emitter.normal);
+        let v = if clear(polygon, n_s) {
+            1.0
+        } else {
             // Streams above the element ids: patch k's rays.
-            let stream = u32::MAX - k;
-            if dark >> i & 1 == 1
-                && visible(emitter.vertices(), emitter.normal, PROBE_RAYS, stream) == Some(0.0)
-            {
+            let visible = |n: usize| {
+                let mut rng = pair_stream(seed, leaf.0, u32::MAX - k);
+                let (total, seen) = rays(polygon, n_s, n, &mut rng);
+                (total > 0.0).then(|| seen / total)
+            };
+            if dark >> i & 1 == 1 && visible(PROBE_RAYS) == Some(0.0) {
                 continue;
             }
-            let mut v = visible(emitter.vertices(), emitter.normal, DIRECT_RAYS, stream);
-            if v.is_some_and(|v| v > 0.0 && v < 1.0) {
+            match visible(DIRECT_RAYS) {
                 // In a penumbra: a finer estimate.
-                v = visible(emitter.vertices(), emitter.normal, PENUMBRA_RAYS, stream);
+                Some(v) if v > 0.0 && v < 1.0 => visible(PENUMBRA_RAYS).unwrap_or(0.0),
+                v => v.unwrap_or(0.0),
             }
-            irradiance += f * v.unwrap_or(0.0) * emitter.emission;
-        }
+        };
+        irradiance += f * v * emitter.emission;
     }
     if let Some(&c) = solution.cluster_irradiance.get(e.patch as usize) {
         // The patch's mean, which only its exposed part receives.
@@ -259,8 +267,13 @@ pub fn point_light(
             let v = if l.unobstructed() {
                 1.0
             } else if gather.link_rays == LinkRays::Every || !dim {
-                visible(s.vertices(), source.normal, POINT_RAYS, l.source.0)
-                    .unwrap_or(l.carried_visibility())
+                // No shaft first: a clear shaft would only save these few
+                // rays, which then all get through.
+                let mut rng = pair_stream(seed, leaf.0, l.source.0);
+                match rays(s.vertices(), source.normal, POINT_RAYS, &mut rng) {
+                    (total, seen) if total > 0.0 => seen / total,
+                    _ => l.carried_visibility(),
+                }
             } else {
                 l.carried_visibility()
             };
