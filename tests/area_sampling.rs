@@ -5,7 +5,7 @@
 
 use glam::{DQuat, DVec3};
 use nusselt::formfactor::area_sampling::{DEFAULT_TOLERANCE, MAX_RAYS};
-use nusselt::formfactor::closed_form::{c11, c14, discs};
+use nusselt::formfactor::closed_form::{c11, c14, discs, point_to_disc};
 use nusselt::formfactor::{
     Estimate, form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon,
     form_factor_polygon_polygon_with,
@@ -409,15 +409,6 @@ fn the_same_stream_gives_the_same_factor() {
         })
     };
     assert_eq!(run(), run());
-}
-
-/// F from a differential area to a parallel disc of radius `r` facing it,
-/// at height `h` and `a` off the disc's axis (Howell's catalogue; on the
-/// axis r² / (h² + r²)): ½ (1 − (h² + a² − r²) / √((h² + a² + r²)² −
-/// 4 a² r²)).
-fn point_to_disc(r: f64, h: f64, a: f64) -> f64 {
-    let (h2, a2, r2) = (h * h, a * a, r * r);
-    0.5 * (1.0 - (h2 + a2 - r2) / ((h2 + a2 + r2).powi(2) - 4.0 * a2 * r2).sqrt())
 }
 
 /// A square of side `side` centred on (a, 0, 0), facing up.

@@ -1,7 +1,10 @@
 //! Time per form factor against accuracy, for each kernel on three pairs of
 //! unit squares: touching (at a right angle on a shared edge, Howell
 //! C-14), nearly touching (the same with a 10⁻³ gap) and distant (parallel,
-//! opposed, 5 apart, C-11).
+//! opposed, 5 apart, C-11); and, for the kernels that see occluders (area
+//! sampling through its rays, the hemicube through its z-buffer), a point
+//! below a disc with an opaque disc between them (exact: the point's
+//! contour integral over the source minus the shadow's closed form).
 //!
 //! Run: `cargo run --release --example bench-formfactors`. Prints a
 //! Markdown table: per kernel and knob (area sampling's
@@ -9,17 +12,20 @@
 //! hemicube's resolution at the receiver's centroid), the time per factor,
 //! the true relative error (mean over seeds for sampling and the rotated
 //! hemicube) and the kernel's own stated error, and the rays or evaluations
-//! spent. Visibility is free here (nothing occludes): a real scene adds
-//! the rays' cost (see `bench-visibility`).
+//! spent. Visibility is free for the square pairs (nothing occludes) and
+//! one plane test a ray for the occluded pair: a real scene adds the rays'
+//! cost (see `bench-visibility`).
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use glam::DVec3;
 use nusselt::formfactor::area_sampling::MAX_RAYS;
-use nusselt::formfactor::closed_form::{c11, c14};
+use nusselt::formfactor::closed_form::{c11, c14, point_to_disc};
 use nusselt::formfactor::hemicube::Hemicube;
-use nusselt::formfactor::{form_factor_area_sampling, form_factor_polygon_polygon};
+use nusselt::formfactor::{
+    form_factor_area_sampling, form_factor_point_polygon, form_factor_polygon_polygon,
+};
 use nusselt::sampling::stream;
 
 /// Repeat each measurement for at least this long.
@@ -51,6 +57,17 @@ fn ceiling(z: f64) -> Vec<DVec3> {
     }
     v.reverse();
     v
+}
+
+/// A regular `m`-gon of the area of the disc of radius `r` about the z
+/// axis at height `z`, facing down (towards the origin).
+fn disc_down(r: f64, z: f64, m: usize) -> Vec<DVec3> {
+    let t = std::f64::consts::TAU / m as f64;
+    let rr = r * (t / t.sin()).sqrt();
+    (0..m)
+        .rev()
+        .map(|k| DVec3::new(rr * (k as f64 * t).cos(), rr * (k as f64 * t).sin(), z))
+        .collect()
 }
 
 /// Runs `f(k)` for k = 0, 1, … until `MIN_SECONDS` have passed (at least
@@ -142,6 +159,7 @@ fn main() {
             );
         }
     }
+    occluded();
 }
 
 fn row(pair: &str, kernel: &str, knob: &str, secs: f64, err: f64, stated: Option<f64>, work: f64) {
@@ -157,4 +175,73 @@ fn row(pair: &str, kernel: &str, knob: &str, secs: f64, err: f64, stated: Option
         "–".to_string()
     };
     println!("| {pair} | {kernel} | {knob} | {time} | {err:.1e} | {stated} | {work} |");
+}
+
+/// A point (a square of side 10⁻⁴) 0.5 off the axis of a unit disc 1
+/// above it, an opaque disc of radius 0.15 halfway: it hides a disc of
+/// radius 0.3 of the source, 1.0 off the point's foot.
+fn occluded() {
+    let (r, h, a, ro) = (1.0, 1.0, 0.5, 0.15);
+    let e = 0.5e-4;
+    let receiver = vec![
+        DVec3::new(a - e, -e, 0.0),
+        DVec3::new(a + e, -e, 0.0),
+        DVec3::new(a + e, e, 0.0),
+        DVec3::new(a - e, e, 0.0),
+    ];
+    let source = disc_down(r, h, 64);
+    let x = DVec3::new(a, 0.0, 0.0);
+    let exact =
+        form_factor_point_polygon(x, DVec3::Z, &source) - point_to_disc(2.0 * ro, h, 2.0 * a);
+    let name = "point behind a disc (hides 5 %)";
+    let visible = |x: DVec3, y: DVec3| {
+        let t = (0.5 * h - x.z) / (y.z - x.z);
+        !(0.0..=1.0).contains(&t) || (x + t * (y - x)).truncate().length() >= ro
+    };
+    for tol in [1e-1, 1e-2, 1e-3] {
+        let (secs, runs) = timed(|k| {
+            form_factor_area_sampling(
+                &receiver,
+                &source,
+                tol,
+                MAX_RAYS,
+                &mut stream(12, k),
+                visible,
+            )
+        });
+        let n = runs.len() as f64;
+        let err = runs.iter().map(|f| (f.value - exact).abs()).sum::<f64>() / n;
+        let stated = runs.iter().map(|f| f.error).sum::<f64>() / n;
+        let rays = runs.iter().map(|f| f.evaluations).sum::<usize>() as f64 / n;
+        row(
+            name,
+            "sampling",
+            &format!("tolerance {tol:e}"),
+            secs,
+            err / exact,
+            Some(stated / exact),
+            rays,
+        );
+    }
+    let blocker = disc_down(ro, 0.5 * h, 64);
+    for res in [32, 128, 512] {
+        let cube = Hemicube::new(res);
+        let polygons = [source.as_slice(), blocker.as_slice()];
+        let (secs, runs) = timed(|k| {
+            let mut out = [0.0, 0.0];
+            let angle = k as f64 * 0.618_033_988_749_895 * std::f64::consts::TAU;
+            cube.row(x, DVec3::Z, &polygons, None, angle, &mut out);
+            out[0]
+        });
+        let err = runs.iter().map(|f| (f - exact).abs()).sum::<f64>() / runs.len() as f64;
+        row(
+            name,
+            "hemicube (at the point)",
+            &format!("resolution {res}"),
+            secs,
+            err / exact,
+            None,
+            0.0,
+        );
+    }
 }

@@ -38,3 +38,10 @@ pub fn discs(r1: f64, r2: f64, a: f64) -> f64 {
     let x = 1.0 + (1.0 + r2 * r2) / (r1 * r1);
     0.5 * (x - (x * x - 4.0 * (r2 / r1).powi(2)).sqrt())
 }
+
+/// From a differential area to a parallel disc of radius `r` facing it, at
+/// height `h` and `a` off the disc's axis (on the axis r² / (h² + r²)).
+pub fn point_to_disc(r: f64, h: f64, a: f64) -> f64 {
+    let (h2, a2, r2) = (h * h, a * a, r * r);
+    0.5 * (1.0 - (h2 + a2 - r2) / ((h2 + a2 + r2).powi(2) - 4.0 * a2 * r2).sqrt())
+}
