@@ -99,31 +99,8 @@ fn main() {
     );
     println!("|---|---|---|---:|---:|---:|---:|");
     for (name, source, exact) in &pairs {
-        for tol in [1e-1, 1e-2, 1e-3, 1e-4] {
-            let (secs, runs) = timed(|k| {
-                form_factor_area_sampling(
-                    &receiver,
-                    source,
-                    tol,
-                    MAX_RAYS,
-                    &mut stream(11, k),
-                    |_, _| true,
-                )
-            });
-            let n = runs.len() as f64;
-            let err = runs.iter().map(|f| (f.value - exact).abs()).sum::<f64>() / n;
-            let stated = runs.iter().map(|f| f.error).sum::<f64>() / n;
-            let rays = runs.iter().map(|f| f.evaluations).sum::<usize>() as f64 / n;
-            row(
-                name,
-                "sampling",
-                &format!("tolerance {tol:e}"),
-                secs,
-                err / exact,
-                Some(stated / exact),
-                rays,
-            );
-        }
+        let tols = [1e-1, 1e-2, 1e-3, 1e-4];
+        sampling_rows(name, &receiver, source, *exact, &tols, 11, |_, _| true);
         for tol in [1e-3, 1e-4, 1e-5, 1e-6] {
             let (secs, runs) = timed(|_| form_factor_polygon_polygon(&receiver, source, tol));
             let f = runs[0];
@@ -138,26 +115,8 @@ fn main() {
             );
         }
         let x = DVec3::new(0.5, 0.5, 0.0);
-        for res in [32, 128, 512] {
-            let cube = Hemicube::new(res);
-            let polygons = [source.as_slice()];
-            let (secs, runs) = timed(|k| {
-                let mut out = [0.0];
-                let angle = k as f64 * 0.618_033_988_749_895 * std::f64::consts::TAU;
-                cube.row(x, DVec3::Z, &polygons, None, angle, &mut out);
-                out[0]
-            });
-            let err = runs.iter().map(|f| (f - exact).abs()).sum::<f64>() / runs.len() as f64;
-            row(
-                name,
-                "hemicube (at the centroid)",
-                &format!("resolution {res}"),
-                secs,
-                err / exact,
-                None,
-                0.0,
-            );
-        }
+        let label = "hemicube (at the centroid)";
+        hemicube_rows(name, label, x, &[source.as_slice()], *exact);
     }
     occluded();
 }
@@ -198,14 +157,39 @@ fn occluded() {
         let t = (0.5 * h - x.z) / (y.z - x.z);
         !(0.0..=1.0).contains(&t) || (x + t * (y - x)).truncate().length() >= ro
     };
-    for tol in [1e-1, 1e-2, 1e-3] {
+    sampling_rows(
+        name,
+        &receiver,
+        &source,
+        exact,
+        &[1e-1, 1e-2, 1e-3],
+        12,
+        visible,
+    );
+    let blocker = disc_down(ro, 0.5 * h, 64);
+    let polygons = [source.as_slice(), blocker.as_slice()];
+    hemicube_rows(name, "hemicube (at the point)", x, &polygons, exact);
+}
+
+/// Area sampling's rows at tolerances `tols`: time, mean true and stated
+/// relative error over seeds (streams `key`, 0, 1, …), mean rays.
+fn sampling_rows(
+    name: &str,
+    receiver: &[DVec3],
+    source: &[DVec3],
+    exact: f64,
+    tols: &[f64],
+    key: u64,
+    visible: impl Fn(DVec3, DVec3) -> bool + Copy,
+) {
+    for &tol in tols {
         let (secs, runs) = timed(|k| {
             form_factor_area_sampling(
-                &receiver,
-                &source,
+                receiver,
+                source,
                 tol,
                 MAX_RAYS,
-                &mut stream(12, k),
+                &mut stream(key, k),
                 visible,
             )
         });
@@ -223,20 +207,23 @@ fn occluded() {
             rays,
         );
     }
-    let blocker = disc_down(ro, 0.5 * h, 64);
+}
+
+/// The hemicube's rows at `x` (normal +z), turned by a new angle each
+/// call: the factor to the first of `polygons`, the others occluding.
+fn hemicube_rows(name: &str, label: &str, x: DVec3, polygons: &[&[DVec3]], exact: f64) {
     for res in [32, 128, 512] {
         let cube = Hemicube::new(res);
-        let polygons = [source.as_slice(), blocker.as_slice()];
+        let mut out = vec![0.0; polygons.len()];
         let (secs, runs) = timed(|k| {
-            let mut out = [0.0, 0.0];
             let angle = k as f64 * 0.618_033_988_749_895 * std::f64::consts::TAU;
-            cube.row(x, DVec3::Z, &polygons, None, angle, &mut out);
+            cube.row(x, DVec3::Z, polygons, None, angle, &mut out);
             out[0]
         });
         let err = runs.iter().map(|f| (f - exact).abs()).sum::<f64>() / runs.len() as f64;
         row(
             name,
-            "hemicube (at the point)",
+            label,
             &format!("resolution {res}"),
             secs,
             err / exact,
