@@ -11,7 +11,7 @@ set -euo pipefail
 budget="$1"
 shift
 bin="${NUSSELT_BIN:-target/release/nusselt}"
-[ -n "${NUSSELT_BIN:-}" ] || [ -n "${NUSSELT_BIN:-}" ] || cargo build --release --quiet
+[ -n "${NUSSELT_BIN:-}" ] || cargo build --release --quiet
 scratch="$(mktemp -d)"
 trap 'rm -rf "$scratch"' EXIT
 echo "| scene | triangles | budget | wall | load | occluder BVH | shadow lines | linking | refinement | solve | output mesh | render | write | output vertices | peak MiB |"
