@@ -3,6 +3,8 @@
 //! the limit, the solution stays physical, and `report.json` names the
 //! budget (or says `null`); the command line checks the values.
 
+use std::time::{Duration, Instant};
+
 use nusselt::hierarchical::{
     Accuracy, Budget, BudgetHit, Clustering, HierarchicalSettings, memory_estimate,
     solve_hierarchical_guided,
@@ -217,6 +219,25 @@ fn spent_time_budget_solves_the_first_links() {
     // No correction pass began after the budget was spent.
     assert!(r.report.correction.is_none());
     assert!(free.report.correction.is_some_and(|c| !c.passes.is_empty()));
+}
+
+/// The budget's clock may start before the solve (`nusselt solve` starts
+/// it with the command, so that loading counts): a budget spent by then
+/// binds refinement and the output mesh as one spent during the solve.
+#[test]
+fn a_budget_spent_before_the_solve_binds_it() {
+    let scene = cornell();
+    let mut s = settings(|h| h.time_budget = Some(10.0));
+    s.budget_start = Instant::now().checked_sub(Duration::from_secs(11));
+    assert!(s.budget_start.is_some(), "the clock cannot go back 11 s");
+    let r = run(&scene, &s);
+    assert_eq!(hit(&r).kind, Budget::Time);
+    assert_eq!(r.report.counts.elements, r.report.counts.patches);
+    let m = r.report.mesh.as_ref().unwrap();
+    assert!(
+        m.evaluations > 0 && m.late_evaluations == m.evaluations,
+        "{m:?}"
+    );
 }
 
 /// Under a time budget that is never spent, refinement rounds settle their

@@ -195,7 +195,8 @@ pub struct HierarchicalArgs {
     /// patches or more.
     #[arg(hide_short_help = true, long, value_enum, default_value_t = Clustering::Auto)]
     pub clustering: Clustering,
-    /// Seconds the whole run may take, roughly: shadow-line wedges stop at
+    /// Seconds the whole run may take, roughly, loading included:
+    /// shadow-line wedges stop at
     /// 15 % of it, refinement and correction passes at 40 % (the links as
     /// they are get solved), the output mesh's
     /// points after 80 % take their leaf's value without rays, render

@@ -171,6 +171,7 @@ impl SolveArgs {
             exposure: self.exposure,
             glb: self.glb,
             lightmap: self.lightmap,
+            budget_start: None,
         };
         // Both methods' parts, whichever runs: a bad flag is an error even
         // where it does not apply.
@@ -260,7 +261,8 @@ pub fn run(args: SolveArgs) -> Result<()> {
     if !(args.tolerance > 0.0) {
         bail!("--tolerance must be positive");
     }
-    let settings = args.settings()?;
+    let mut settings = args.settings()?;
+    settings.budget_start = Some(start);
     // The loader's sizes (triangles after instancing, textures) are
     // checked against the same budget.
     options.memory_budget = settings.matrix.memory_budget;

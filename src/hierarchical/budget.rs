@@ -84,7 +84,7 @@ impl BudgetHit {
             Budget::Time => {
                 return format!(
                     "hierarchical: refinement stopped when its share of --time-budget was spent \
-                     ({:.0} % of it, counted from the run's start); raise --time-budget for a \
+                     ({:.0} % of it, counted from the command's start); raise --time-budget for a \
                      finer solution",
                     100.0 * REFINE_SHARE
                 );
@@ -99,12 +99,12 @@ impl BudgetHit {
     }
 }
 
-/// The part of `--time-budget` (counted from the run's start) by whose end
+/// The part of `--time-budget` (counted from the command's start) by whose end
 /// the shadow lines stop tracing wedges (the remaining luminaire jobs give
 /// no D1 segments; contact lines are all found).
 pub const SHADOW_SHARE: f64 = 0.15;
 
-/// The part of `--time-budget` (counted from the run's start) that
+/// The part of `--time-budget` (counted from the command's start) that
 /// linking and refinement may use; solving, the output mesh
 /// ([`MESH_SHARE`]) and the render get the rest.
 pub const REFINE_SHARE: f64 = 0.4;

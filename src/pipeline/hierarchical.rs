@@ -31,6 +31,8 @@ pub(super) fn solve(
     progress: &Progress,
 ) -> Result<SolveRun> {
     let start = Instant::now();
+    // The budget's clock (the command's start: loading counts).
+    let clock = settings.budget_start.unwrap_or(start);
     let mut report = new_report(scene, settings);
     let view = View::resolve(scene.cameras.first(), scene.bounds, &settings.view)?;
     settings.check_image_memory(&view, settings.hierarchical.memory_budget)?;
@@ -54,7 +56,7 @@ pub(super) fn solve(
         budget.and_then(|t| {
             Duration::try_from_secs_f64(t * share)
                 .ok()
-                .and_then(|d| start.checked_add(d))
+                .and_then(|d| clock.checked_add(d))
         })
     };
 
@@ -79,7 +81,7 @@ pub(super) fn solve(
     };
 
     let mut hs = settings.hierarchical.clone();
-    hs.time_budget = budget.map(|t| (t * REFINE_SHARE - start.elapsed().as_secs_f64()).max(0.0));
+    hs.time_budget = budget.map(|t| (t * REFINE_SHARE - clock.elapsed().as_secs_f64()).max(0.0));
     if settings.importance {
         hs.importance = Some(view_importance(scene, &bvh, &view));
     }

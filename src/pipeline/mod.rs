@@ -126,6 +126,9 @@ pub struct SolveSettings {
     pub glb: bool,
     /// Lightmap atlases of this side in texels ([`Lightmap`]).
     pub lightmap: Option<u32>,
+    /// When `--time-budget`'s clock started: the command's start, so that
+    /// loading the scene counts too. `None`: when [`solve`] starts.
+    pub budget_start: Option<Instant>,
 }
 
 impl SolveSettings {
@@ -206,6 +209,7 @@ impl Default for SolveSettings {
             exposure: None,
             glb: false,
             lightmap: None,
+            budget_start: None,
         }
     }
 }
