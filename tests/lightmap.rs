@@ -21,9 +21,21 @@ fn solve(scene: &Scene, lightmap: Option<u32>) -> SolveRun {
 
 /// Relative differences between the atlas (bilinear, through the
 /// interpolated texture coordinates) and the mesh's own linear
-/// interpolation, at `n` random points of random triangles; sorted.
+/// interpolation, at `n` random points uniform over the mesh's area (a
+/// triangle picked by area: the many small triangles along a contact
+/// line, narrower than a texel, count for their area); sorted.
 fn differences(mesh: &OutputMesh, lightmap: &Lightmap, n: usize) -> Vec<f32> {
     let mut rng = rand_pcg::Pcg32::seed_from_u64(7);
+    let mut total = 0.0f64;
+    let cumulative: Vec<f64> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize].as_dvec3());
+            total += 0.5 * (b - a).cross(c - a).length();
+            total
+        })
+        .collect();
     let scale = mesh
         .radiosity
         .iter()
@@ -31,7 +43,9 @@ fn differences(mesh: &OutputMesh, lightmap: &Lightmap, n: usize) -> Vec<f32> {
         .fold(0.0f32, f32::max);
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
-        let tri = mesh.triangles[rng.random_range(0..mesh.triangles.len())];
+        let at = rng.random::<f64>() * total;
+        let k = cumulative.partition_point(|&c| c <= at);
+        let tri = mesh.triangles[k.min(mesh.triangles.len() - 1)];
         let (mut a, mut b): (f32, f32) = (rng.random(), rng.random());
         if a + b > 1.0 {
             (a, b) = (1.0 - a, 1.0 - b);
@@ -97,10 +111,12 @@ fn the_cornell_atlas_agrees_with_the_mesh_and_leaves_no_hole() {
         );
         // Bilinear filtering of a piecewise-linear field departs from it only
         // within a texel of its kinks (the output mesh's edges).
+        // (Measured over the area: 256² median 10⁻⁴, p95 0.0037; 1024²
+        // p95 0.0003.)
         let (median_bound, p95_bound) = if resolution == 256 {
-            (0.01, 0.08)
+            (0.002, 0.02)
         } else {
-            (0.003, 0.03)
+            (0.001, 0.003)
         };
         assert!(
             median <= median_bound && p95 <= p95_bound,

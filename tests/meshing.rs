@@ -6,10 +6,10 @@
 use std::collections::HashMap;
 
 use glam::{DVec3, Vec3};
-use nusselt::discontinuity::{DiscontinuitySettings, Segment, discontinuity_segments};
+use nusselt::discontinuity::{DiscontinuitySettings, Segment, SegmentKind, discontinuity_segments};
 use nusselt::hierarchical::{
-    Accuracy, HierarchicalSettings, HierarchicalSolution, solve_hierarchical,
-    solve_hierarchical_guided,
+    Accuracy, CONTACT_AREA_FRACTION, HierarchicalSettings, HierarchicalSolution,
+    solve_hierarchical, solve_hierarchical_guided,
 };
 use nusselt::mesh::OutputMesh;
 use nusselt::meshing::point_gather::{LinkRays, PointEvaluator};
@@ -308,12 +308,12 @@ fn the_hierarchy_follows_the_discontinuities() {
     let plain = solved_cornell(false);
     let guided = solved_cornell(true);
     guided.solution.hierarchy.validate(&guided.scene).unwrap();
-    let bound = 4.0 * guided.solution.thresholds.min_area * (1.0 + 1e-9);
+    let min_area = guided.solution.thresholds.min_area;
     let h = &guided.solution.hierarchy;
     // A point of a segment strictly inside a leaf: that leaf is crossed by
     // the segment, so it is at most the bound.
     let tol = 1e-6 * guided.scene.diagonal();
-    let mut checked = 0;
+    let (mut checked, mut contacts) = (0, 0);
     let crossed_area = |sol: &HierarchicalSolution| {
         let mut sum = 0.0;
         for id in sol.hierarchy.leaves() {
@@ -347,16 +347,25 @@ fn the_hierarchy_follows_the_discontinuities() {
                 normal.cross(edge).normalize().dot(x - vs[i]) > tol
             });
             if inside {
+                // Contact lines go finer than shadow lines.
+                let bound = match seg.kind {
+                    SegmentKind::Contact => {
+                        contacts += 1;
+                        CONTACT_AREA_FRACTION * min_area
+                    }
+                    _ => 4.0 * min_area,
+                } * (1.0 + 1e-9);
                 checked += 1;
                 assert!(
                     e.area <= bound,
-                    "leaf {id:?} crossed by a segment has area {} > {bound}",
+                    "leaf {id:?} crossed by a {:?} segment has area {} > {bound}",
+                    seg.kind,
                     e.area
                 );
             }
         }
     }
-    assert!(checked > 0);
+    assert!(checked > contacts && contacts > 0, "{checked} {contacts}");
     let (a_plain, a_guided) = (
         crossed_area(&plain.solution),
         crossed_area(&guided.solution),

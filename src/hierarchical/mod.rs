@@ -58,6 +58,7 @@ mod solver;
 
 pub use budget::{Budget, BudgetHit, Coarsened};
 pub use limits::memory_estimate;
+pub use refine::CONTACT_AREA_FRACTION;
 pub use settings::{
     Accuracy, Clustering, DEFAULT_CORRECTION_PASSES, DEFAULT_CORRECTION_RAYS,
     DEFAULT_CORRECTION_TOLERANCE, DEFAULT_MEMORY_BUDGET, HierarchicalSettings, Preset,
