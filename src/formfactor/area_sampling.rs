@@ -67,7 +67,6 @@
 //!   while pieces whose rays missed it stayed: +0.27 % mean bias at r/h 4,
 //!   10⁻³, over 20 seeds (before witnesses); steered by the decisions,
 //!   +0.013 %.
-//!
 //! - Check rays per reading are in proportion to its share of the
 //!   receiver (the target above times the spread once more), so the
 //!   receiver's check rays total about the same however finely it is cut:
@@ -81,8 +80,8 @@
 //! factor). 200 random placements without occluders: all covered, worst
 //! 0.47. With a plate between: 200 of 200 covered, worst 0.96, 209,000
 //! rays a factor (one random ray per piece before: 196, worst 6.2, 109,000
-//! rays); 2000 placements: 1999 covered, worst 2.64. A point against a disc at 10⁻³, five
-//! aspect ratios: behind an opaque disc 0.7–1.7 × 10⁻⁴ true in
+//! rays); 2000 placements: 1999 covered, worst 2.64. A point against a
+//! disc at 10⁻³, five aspect ratios: behind an opaque disc 0.7–1.7 × 10⁻⁴ true in
 //! 10,000–98,000 rays, through a round hole 0.3–2.7 × 10⁻⁴ in
 //! 97,000–611,000 rays (one ray per piece missed 0.1 % within
 //! [`MAX_RAYS`]). Weak: a strip plate between two unit squares at 10⁻³
