@@ -99,7 +99,7 @@ use glam::{DVec2, DVec3};
 use rand::Rng;
 
 use super::point_polygon::clip_to_half_space;
-use super::{Estimate, form_factor_point_polygon};
+use super::{Estimate, Ranked, form_factor_point_polygon};
 use crate::sampling::{PolygonSampler, point_in_polygon, stratified};
 use crate::util::geometry::{outside_polygon, segment_distance};
 
@@ -147,29 +147,6 @@ pub const DEFAULT_TOLERANCE: f64 = 0.01;
 /// The most rays one form factor may cast by default: enough for a 10⁻⁴
 /// tolerance on two touching unit squares.
 pub const MAX_RAYS: usize = 2_000_000;
-
-/// An item of a max-heap, ranked by `key`.
-struct Ranked<T> {
-    key: f64,
-    item: T,
-}
-
-impl<T> PartialEq for Ranked<T> {
-    fn eq(&self, other: &Self) -> bool {
-        self.key == other.key
-    }
-}
-impl<T> Eq for Ranked<T> {}
-impl<T> PartialOrd for Ranked<T> {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl<T> Ord for Ranked<T> {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.key.total_cmp(&other.key)
-    }
-}
 
 /// A receiver triangle split into its four midpoint quarters, with their
 /// readings; ranked by `bias + noise`.

@@ -40,3 +40,27 @@ pub struct Estimate {
     /// Integrand evaluations (quadrature points; area sampling: rays).
     pub evaluations: usize,
 }
+
+/// An item of a max-heap (the adaptive kernels' worst piece first),
+/// ranked by `key` in `f64::total_cmp` order.
+pub(crate) struct Ranked<T> {
+    pub(crate) key: f64,
+    pub(crate) item: T,
+}
+
+impl<T> PartialEq for Ranked<T> {
+    fn eq(&self, other: &Self) -> bool {
+        self.key == other.key
+    }
+}
+impl<T> Eq for Ranked<T> {}
+impl<T> PartialOrd for Ranked<T> {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl<T> Ord for Ranked<T> {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.key.total_cmp(&other.key)
+    }
+}

@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 
-use super::{Estimate, form_factor_point_polygon};
+use super::{Estimate, Ranked, form_factor_point_polygon};
 
 /// Radon's 7-point, degree-5 rule on a triangle: barycentric points and
 /// weights (summing to 1).
@@ -65,29 +65,11 @@ pub fn form_factor_polygon_polygon(
     form_factor_polygon_polygon_with(receiver, source, tolerance, MAX_EVALUATIONS, |_| 1.0)
 }
 
-/// A triangle of the adaptive quadrature: its four midpoint children, their
-/// rule values, and how far their sum is from the parent's rule value.
+/// A triangle of the adaptive quadrature: its four midpoint children and
+/// their rule values (ranked by how far their sum is from the parent's).
 struct Piece {
     children: [[DVec3; 3]; 4],
     parts: [f64; 4],
-    diff: f64,
-}
-
-impl PartialEq for Piece {
-    fn eq(&self, other: &Self) -> bool {
-        self.diff == other.diff
-    }
-}
-impl Eq for Piece {}
-impl PartialOrd for Piece {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Piece {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.diff.total_cmp(&other.diff)
-    }
 }
 
 /// [`form_factor_polygon_polygon`] with the inner integral weighted by
@@ -145,10 +127,9 @@ pub fn form_factor_polygon_polygon_checked(
         let children = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]];
         let parts = children.map(|ch| radon(&ch, &f, evaluations));
         let diff = (parts.iter().sum::<f64>() - value).abs();
-        Piece {
-            children,
-            parts,
-            diff,
+        Ranked {
+            key: diff,
+            item: Piece { children, parts },
         }
     };
     let mut heap = std::collections::BinaryHeap::new();
@@ -156,19 +137,21 @@ pub fn form_factor_polygon_polygon_checked(
         heap.push(piece(tri, value, &mut evaluations));
     }
     let budget = tolerance.max(0.0) * area;
-    let mut error: f64 = heap.iter().map(|p| p.diff).sum();
+    let mut error: f64 = heap.iter().map(|p| p.key).sum();
     while error > budget && evaluations < max_evaluations {
-        let Some(worst) = heap.pop() else { break };
-        error -= worst.diff;
+        let Some(Ranked { key, item: worst }) = heap.pop() else {
+            break;
+        };
+        error -= key;
         for (ch, part) in worst.children.iter().zip(worst.parts) {
             let p = piece(*ch, part, &mut evaluations);
-            error += p.diff;
+            error += p.key;
             heap.push(p);
         }
     }
-    let value: f64 = heap.iter().map(|p| p.parts.iter().sum::<f64>()).sum();
+    let value: f64 = heap.iter().map(|p| p.item.parts.iter().sum::<f64>()).sum();
     // Recompute the error from the pieces (the running sum drifts).
-    let error: f64 = heap.iter().map(|p| p.diff).sum();
+    let error: f64 = heap.iter().map(|p| p.key).sum();
     let value = value / area;
     if !value.is_finite() {
         return Estimate::default();
